@@ -1,0 +1,14 @@
+# Strict warnings for every target of ours (not for third-party headers: they are SYSTEM).
+add_library(lidartwin_warnings INTERFACE)
+target_compile_options(lidartwin_warnings INTERFACE
+  -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor -Wold-style-cast -Wcast-align
+  -Wunused -Woverloaded-virtual -Wdouble-promotion -Wformat=2
+  -Wimplicit-fallthrough)
+if(LIDARTWIN_WERROR)
+  target_compile_options(lidartwin_warnings INTERFACE -Werror)
+endif()
+
+if(LIDARTWIN_SANITIZE)
+  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  add_link_options(-fsanitize=address,undefined)
+endif()

@@ -1,0 +1,59 @@
+#pragma once
+// Ouster lidar UDP packets, encoded and decoded from data tables (STYLE.md "Packet format as data").
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+
+#include "lidartwin/packet/data_format.h"
+#include "lidartwin/packet/scan.h"
+
+namespace lidartwin {
+
+// CRC-64/XZ (protocol doc 4.5), table-sliced: it runs on every packet the daemon sends.
+uint64_t crc64_xz(std::span<const uint8_t> bytes);
+
+// How the last 8 bytes of a non-legacy packet were (or are to be) filled.
+enum class FooterKind { kCrc64, kFw2Marker, kOther };
+
+// Built once from a data format, then only read (like the SDK's PacketFormat). Construction
+// validates the format (pixels 1-128, columns_per_packet 1-64 dividing the width, size <= 65535)
+// and throws InputError naming the bad value.
+class PacketFormat {
+ public:
+  explicit PacketFormat(const LidarDataFormat& format);
+
+  const LidarDataFormat& format() const;
+  size_t lidar_packet_size() const;
+  size_t imu_packet_size() const;
+  size_t column_size() const;
+  int packets_per_frame() const;  // packets that carry at least one column of column_window
+  bool has_channel(ChannelField field) const;
+  // Pixel channel value limits: largest value representable (after upshift) and the step (1 << upshift).
+  uint32_t channel_max(ChannelField field) const;
+  uint32_t channel_step(ChannelField field) const;
+
+  // Writes the packet carrying columns [first_column, first_column + columns_per_packet) of scan
+  // into out (size lidar_packet_size()). Header fields from header; legacy encoder counts derive
+  // from measurement ids; the CRC is computed when footer == kCrc64.
+  void encode(const PacketHeader& header, const Scan& scan, int first_column, std::span<uint8_t> out,
+              FooterKind footer = FooterKind::kCrc64) const;
+
+  struct Decoded {
+    PacketHeader header;
+    int first_measurement_id = 0;
+    FooterKind footer = FooterKind::kCrc64;
+    bool crc_ok = true;  // false only when the footer is neither a valid CRC nor the FW 2 marker
+  };
+  // Reads one lidar packet into scan (columns placed by measurement_id; ids >= W are skipped).
+  // Returns nullopt and sets *error (naming the problem) if the packet is malformed.
+  std::optional<Decoded> decode(std::span<const uint8_t> packet, Scan& scan, std::string* error) const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+};
+
+}  // namespace lidartwin
