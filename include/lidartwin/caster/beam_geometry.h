@@ -1,0 +1,33 @@
+#pragma once
+// The ray of every (beam, measurement id) in the sensor frame: the exact inverse of the SDK's XYZ
+// projection (protocol doc 7.1/7.2), so the SDK rebuilds exactly the points we hit.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lidartwin/profile/beam_intrinsics.h"
+
+namespace lidartwin {
+
+struct BeamRay {
+  Eigen::Vector3f origin_m;   // the SDK's virtual origin, n mm behind the beam origin (sensor frame)
+  Eigen::Vector3f direction;  // unit vector (sensor frame)
+  float range_offset_m = 0;   // n: ranges shorter than this would start behind the beam origin
+};
+
+class BeamGeometry {
+ public:
+  BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame);
+  int columns() const { return columns_; }
+  int rows() const { return rows_; }
+  const BeamRay& ray(int row, int measurement_id) const { return rays_[static_cast<size_t>(measurement_id * rows_ + row)]; }
+  // The point the SDK computes for a range in mm (7.1), in the sensor frame, metres.
+  Eigen::Vector3d point(int row, int measurement_id, double range_mm) const;
+
+ private:
+  int columns_ = 0;
+  int rows_ = 0;
+  std::vector<BeamRay> rays_;  // column-major like Scan
+};
+
+}  // namespace lidartwin

@@ -1,0 +1,51 @@
+#pragma once
+// Poses of the sensor in the scene's world frame (Z up, metres; see scene/scene.h).
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+namespace lidartwin {
+
+// world_from_sensor: maps a point in the Ouster sensor frame to the world frame.
+struct Pose {
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return rotation * p + translation; }
+};
+std::string to_string(const Pose& pose);
+// "x y z qx qy qz qw" (TUM order). Throws InputError naming the text and the problem.
+Pose parse_pose(std::string_view text);
+
+struct StampedPose {
+  double time_s = 0.0;
+  Pose pose;
+};
+
+// A trajectory: linear interpolation of translation and slerp of rotation between samples.
+// A looping trajectory repeats with period (end - start); otherwise it holds its end poses.
+class Trajectory {
+ public:
+  static Trajectory constant(const Pose& pose);
+  // TUM format: "timestamp tx ty tz qx qy qz qw" per line, '#' comments. Throws InputError naming
+  // the file and line of a bad row, or non-increasing times.
+  static Trajectory load_tum(const std::filesystem::path& path, bool loop = true);
+  explicit Trajectory(std::vector<StampedPose> samples, bool loop = true);
+
+  Pose at(double time_s) const;
+  double start_s() const;
+  double duration_s() const;
+  const std::vector<StampedPose>& samples() const { return samples_; }
+  void save_tum(const std::filesystem::path& path) const;
+
+ private:
+  std::vector<StampedPose> samples_;
+  bool loop_ = true;
+};
+
+void write_tum(const std::filesystem::path& path, const std::vector<StampedPose>& poses);
+
+}  // namespace lidartwin

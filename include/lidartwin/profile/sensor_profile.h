@@ -1,0 +1,33 @@
+#pragma once
+// A product's description: beams, ranges, lidar modes and the effect chain (profiles/*.json).
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lidartwin/profile/beam_intrinsics.h"
+
+namespace lidartwin {
+
+struct SensorProfile {
+  std::string name;       // file stem, e.g. "os1-64"
+  std::string prod_line;  // what sensor_info.prod_line reports, e.g. "OS-1-64"
+  std::string prod_pn;
+  BeamIntrinsics beams;
+  double min_range_m = 0.3;   // below this: no return
+  double max_range_m = 100.0; // beyond this: no return
+  double beam_divergence_rad = 0.0023;  // FWHM
+  std::vector<std::string> lidar_modes{"512x10", "512x20", "1024x10", "1024x20", "2048x10"};
+  nlohmann::json effects = nlohmann::json::array();  // the effect chain, parsed by effects/
+};
+
+// Loads profiles/<name>.json (or a path to a .json file). Unknown keys, missing keys and values
+// out of range throw InputError naming the file, the key and the allowed range.
+SensorProfile load_profile(std::string_view name_or_path);
+SensorProfile parse_profile(const nlohmann::json& document, std::string_view source);
+std::filesystem::path profiles_dir();  // <source>/profiles, or $LIDARTWIN_PROFILES
+std::vector<std::string> available_profiles();
+
+}  // namespace lidartwin

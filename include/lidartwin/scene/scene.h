@@ -1,0 +1,48 @@
+#pragma once
+// A glTF 2.0 scene in Embree. glTF is metres with +Y up; the world frame used everywhere else is
+// Z up: world = (x, -z, y). That conversion lives here and nowhere else (DESIGN.md).
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+struct RTCSceneTy;
+struct RTCDeviceTy;
+
+namespace lidartwin {
+
+// Surface optics at 865 nm. From glTF materials: extras.reflectivity (0..1, diffuse), else the
+// luminance of baseColorFactor; extras.retroreflective (bool); extras.specular (0..1).
+struct Material {
+  std::string name;
+  float reflectivity = 0.5f;
+  bool retroreflective = false;
+  float specular = 0.0f;
+};
+
+class Scene {
+ public:
+  // Throws InputError naming the file and the problem (unreadable, not glTF, no triangles…).
+  static Scene load(const std::filesystem::path& path);
+  ~Scene();
+  Scene(Scene&&) noexcept;
+  Scene& operator=(Scene&&) noexcept;
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  RTCSceneTy* embree_scene() const;  // committed, for the caster's rtcIntersect calls
+  // Material of an Embree hit (geomID); every geometry has one.
+  const Material& material(unsigned geom_id) const;
+  size_t triangle_count() const;
+  Eigen::AlignedBox3d bounds() const;  // world frame
+
+ private:
+  struct Impl;
+  explicit Scene(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lidartwin
