@@ -40,6 +40,17 @@ struct Metadata {
 Metadata parse_metadata(const nlohmann::json& document, std::string_view source);
 Metadata load_metadata(const std::filesystem::path& path);
 
+// A complete FW 3.1 config_params object with the firmware defaults (protocol doc 3.5):
+// udp_dest 127.0.0.1, ports 7502/7503, 1024x10, RNG19_RFL8_SIG16_NIR16, LEGACY IMU, NORMAL.
+nlohmann::json default_config_params();
+
+// The metadata a sensor reports for a config: lidar_data_format derived from config_params
+// (W and fps from lidar_mode, columns_per_packet, profiles, column_window from azimuth_window,
+// pixel_shift_by_row = round(az * W / 360)), imu_data_format and calibration_status.
+// Throws InputError naming the config key if config_params cannot describe a stream.
+Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beams,
+                       const nlohmann::json& config_params);
+
 // The document GET /api/v1/sensor/metadata serves: all 7 sections plus imu_data_format.
 nlohmann::json to_nested_json(const Metadata& metadata);
 
