@@ -1,0 +1,114 @@
+// Trajectories: TUM files in and out, and the pose at any time (lerp + slerp between samples).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "lidartwin/error.h"
+#include "lidartwin/pose/pose.h"
+#include "pose/pose_text.h"
+
+namespace lidartwin {
+namespace {
+
+std::string format_time(double t) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.9f", t);
+  return buffer;
+}
+
+void check_samples(const std::vector<StampedPose>& samples) {
+  if (samples.empty()) throw InputError("trajectory: no poses");
+  for (size_t i = 1; i < samples.size(); ++i) {
+    if (!(samples[i].time_s > samples[i - 1].time_s)) {
+      throw InputError("trajectory: timestamp " + format_time(samples[i].time_s) + " of pose " + std::to_string(i) +
+                       " is not after the previous one (" + format_time(samples[i - 1].time_s) + ")");
+    }
+  }
+}
+
+// One TUM row "t x y z qx qy qz qw"; where = "file:line".
+StampedPose parse_tum_row(std::string_view line, const std::string& where) {
+  const auto values = pose_detail::parse_numbers(line);
+  if (!values || values->size() != 8) {
+    throw InputError(where + ": expected 8 numbers \"timestamp tx ty tz qx qy qz qw\", got \"" + std::string(line) +
+                     "\"");
+  }
+  if (!std::isfinite((*values)[0])) throw InputError(where + ": timestamp must be finite");
+  return {(*values)[0], pose_detail::pose_from_numbers(values->data() + 1, where)};
+}
+
+std::string_view trim(std::string_view s) {
+  const auto first = s.find_first_not_of(" \t\r");
+  if (first == std::string_view::npos) return {};
+  return s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
+}
+
+Pose interpolate(const StampedPose& a, const StampedPose& b, double time_s) {
+  const double u = (time_s - a.time_s) / (b.time_s - a.time_s);
+  Pose pose;
+  pose.translation = (1.0 - u) * a.pose.translation + u * b.pose.translation;
+  pose.rotation = a.pose.rotation.slerp(u, b.pose.rotation);  // Eigen takes the shorter arc
+  return pose;
+}
+
+}  // namespace
+
+Trajectory::Trajectory(std::vector<StampedPose> samples, bool loop) : samples_(std::move(samples)), loop_(loop) {
+  check_samples(samples_);
+}
+
+Trajectory Trajectory::constant(const Pose& pose) { return Trajectory({StampedPose{0.0, pose}}, false); }
+
+Trajectory Trajectory::load_tum(const std::filesystem::path& path, bool loop) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot open trajectory file");
+  std::vector<StampedPose> samples;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const std::string_view row = trim(line);
+    if (row.empty() || row.front() == '#') continue;
+    const std::string where = path.string() + ":" + std::to_string(number);
+    StampedPose sample = parse_tum_row(row, where);
+    if (!samples.empty() && !(sample.time_s > samples.back().time_s)) {
+      throw InputError(where + ": timestamp " + format_time(sample.time_s) + " is not after the previous one (" +
+                       format_time(samples.back().time_s) + ")");
+    }
+    samples.push_back(sample);
+  }
+  if (samples.empty()) throw InputError(path.string() + ": no poses in trajectory file");
+  return Trajectory(std::move(samples), loop);
+}
+
+double Trajectory::start_s() const { return samples_.front().time_s; }
+double Trajectory::duration_s() const { return samples_.back().time_s - samples_.front().time_s; }
+
+Pose Trajectory::at(double time_s) const {
+  if (samples_.size() == 1) return samples_.front().pose;
+  const double period = duration_s();
+  if (loop_) time_s = start_s() + (time_s - start_s()) - period * std::floor((time_s - start_s()) / period);
+  const auto after = std::upper_bound(samples_.begin(), samples_.end(), time_s,
+                                      [](double t, const StampedPose& s) { return t < s.time_s; });
+  if (after == samples_.begin()) return samples_.front().pose;
+  if (after == samples_.end()) return samples_.back().pose;
+  return interpolate(*(after - 1), *after, time_s);
+}
+
+void Trajectory::save_tum(const std::filesystem::path& path) const { write_tum(path, samples_); }
+
+void write_tum(const std::filesystem::path& path, const std::vector<StampedPose>& poses) {
+  std::FILE* file = std::fopen(path.c_str(), "w");
+  if (file == nullptr) throw InputError(path.string() + ": cannot open for writing");
+  std::fprintf(file, "# timestamp tx ty tz qx qy qz qw\n");
+  for (const auto& [t, pose] : poses) {
+    const auto& p = pose.translation;
+    const auto& q = pose.rotation;
+    std::fprintf(file, "%.9f %.9f %.9f %.9f %.12f %.12f %.12f %.12f\n", t, p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
+                 q.w());
+  }
+  const bool failed = std::ferror(file) != 0;
+  if (std::fclose(file) != 0 || failed) throw InputError(path.string() + ": write failed");
+}
+
+}  // namespace lidartwin
