@@ -1,0 +1,58 @@
+#include "lidartwin/streamer/packet_schedule.h"
+
+#include <cassert>
+
+namespace lidartwin {
+
+namespace {
+constexpr uint64_t kNsPerSecond = 1'000'000'000;
+
+// Whether packet [first, first + cpp) meets the inclusive window; a window with c0 > c1 wraps
+// through m = 0 (6.4).
+bool packet_meets_window(int first, int columns_per_packet, const std::array<int, 2>& window) {
+  const int last = first + columns_per_packet - 1;
+  const auto [c0, c1] = window;
+  if (c0 <= c1) return first <= c1 && last >= c0;
+  return last >= c0 || first <= c1;
+}
+}  // namespace
+
+uint64_t ColumnClock::frame_period_ns() const { return kNsPerSecond / static_cast<uint64_t>(fps); }
+
+uint64_t ColumnClock::column_offset_ns(int measurement_id) const {
+  assert(measurement_id >= 0 && measurement_id <= columns_per_frame);
+  const auto columns_per_second = static_cast<uint64_t>(columns_per_frame) * static_cast<uint64_t>(fps);
+  return static_cast<uint64_t>(measurement_id) * kNsPerSecond / columns_per_second;
+}
+
+uint64_t ColumnClock::frame_start_ns(uint64_t frame_index) const { return frame_index * frame_period_ns(); }
+
+uint64_t ColumnClock::column_time_ns(uint64_t frame_index, int measurement_id) const {
+  return frame_start_ns(frame_index) + column_offset_ns(measurement_id);
+}
+
+std::vector<int> packets_to_send(const LidarDataFormat& format) {
+  const int cpp = format.columns_per_packet;
+  assert(cpp > 0 && format.columns_per_frame % cpp == 0);
+  std::vector<int> firsts;
+  for (int first = 0; first < format.columns_per_frame; first += cpp) {
+    if (packet_meets_window(first, cpp, format.column_window)) firsts.push_back(first);
+  }
+  return firsts;
+}
+
+uint64_t packet_deadline_offset_ns(const ColumnClock& clock, int first_column, int columns_per_packet) {
+  return clock.column_offset_ns(first_column + columns_per_packet - 1);
+}
+
+bool uses_fusa_header(const LidarDataFormat& format) {
+  return format.header_type == HeaderType::kFusa ||
+         format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
+}
+
+uint32_t frame_id_of(uint64_t frame_index, const LidarDataFormat& format) {
+  if (uses_fusa_header(format)) return static_cast<uint32_t>(frame_index & 0xFFFF'FFFFu);
+  return static_cast<uint32_t>(frame_index & 0xFFFFu);
+}
+
+}  // namespace lidartwin

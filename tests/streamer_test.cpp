@@ -1,0 +1,151 @@
+// The column clock without sockets: which packets a window sends, when they are due, which
+// frame_id they carry, and what the IMU reads. Expected values come from the protocol doc (6.1,
+// 6.4: real windowed captures) and closed forms, not from the code's own output.
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lidartwin/streamer/imu_model.h"
+#include "lidartwin/streamer/packet_schedule.h"
+
+namespace lidartwin {
+namespace {
+
+LidarDataFormat format_of(int width, int fps, std::array<int, 2> window, int columns_per_packet = 16) {
+  LidarDataFormat format;
+  format.columns_per_frame = width;
+  format.fps = fps;
+  format.column_window = window;
+  format.columns_per_packet = columns_per_packet;
+  return format;
+}
+
+TEST(PacketSchedule, FullWindowSendsEveryPacket) {
+  const auto firsts = packets_to_send(format_of(1024, 10, {0, 1023}));
+  ASSERT_EQ(firsts.size(), 64u);
+  for (size_t i = 0; i < firsts.size(); ++i) EXPECT_EQ(firsts[i], static_cast<int>(i) * 16);
+}
+
+// windowed_frame1.pcap: azimuth [180000, 360000] -> column_window [1, 256] at 512, 17 packets (6.4).
+TEST(PacketSchedule, WindowSendsOnlyPacketsMeetingIt) {
+  const auto firsts = packets_to_send(format_of(512, 10, {1, 256}));
+  ASSERT_EQ(firsts.size(), 17u);
+  EXPECT_EQ(firsts.front(), 0);
+  EXPECT_EQ(firsts.back(), 256);
+}
+
+// windowed_frame2.pcap: [370, 85] wraps through 0: m 0-95 and 368-511 in one frame, 15 packets.
+TEST(PacketSchedule, WrappingWindowStartsTheFrameAtZero) {
+  const auto firsts = packets_to_send(format_of(512, 10, {370, 85}));
+  const std::vector<int> expected{0, 16, 32, 48, 64, 80, 368, 384, 400, 416, 432, 448, 464, 480, 496};
+  EXPECT_EQ(firsts, expected);
+}
+
+TEST(PacketSchedule, WrappingWindowWithBothEndsInOnePacketSendsAll) {
+  EXPECT_EQ(packets_to_send(format_of(512, 10, {10, 5})).size(), 32u);
+  EXPECT_EQ(packets_to_send(format_of(512, 10, {5, 10})).size(), 1u);
+}
+
+TEST(PacketSchedule, ColumnsPerPacketDividesTheFrame) {
+  EXPECT_EQ(packets_to_send(format_of(2048, 10, {0, 2047}, 8)).size(), 256u);
+  EXPECT_EQ(packets_to_send(format_of(512, 20, {0, 511}, 64)).size(), 8u);
+  EXPECT_EQ(packets_to_send(format_of(1024, 10, {0, 1023}, 1)).size(), 1024u);
+}
+
+TEST(ColumnClock, FramesAndColumnsFollowTheMode) {
+  const ColumnClock clock{1024, 10};
+  EXPECT_EQ(clock.frame_period_ns(), 100'000'000u);
+  EXPECT_EQ(clock.column_offset_ns(1), 97'656u);  // 97 656.25 ns, rounded down (6.1)
+  EXPECT_EQ(clock.column_offset_ns(1024), 100'000'000u);
+  EXPECT_EQ(clock.column_time_ns(3, 1024), clock.frame_start_ns(4));
+  EXPECT_EQ(ColumnClock({512, 10}).column_offset_ns(2), 390'625u);
+  EXPECT_EQ(ColumnClock({2048, 10}).column_offset_ns(1), 48'828u);
+}
+
+// Deadlines of consecutive packets, across several frames, are cpp column periods apart to within
+// the 1 ns rounding, so a frame is spread evenly over its period (protocol doc 1 item 12).
+TEST(PacketSchedule, DeadlinesAreEvenlySpacedAcrossFrames) {
+  for (const auto& [width, fps] : std::vector<std::pair<int, int>>{{512, 10}, {1024, 10}, {1024, 20}, {2048, 10}}) {
+    const auto format = format_of(width, fps, {0, width - 1});
+    const ColumnClock clock{width, fps};
+    const double spacing_ns = 16.0 * 1e9 / (width * fps);
+    std::vector<uint64_t> deadlines;
+    for (uint64_t frame = 0; frame < 3; ++frame) {
+      for (const int first : packets_to_send(format)) {
+        deadlines.push_back(clock.frame_start_ns(frame) + packet_deadline_offset_ns(clock, first, 16));
+      }
+    }
+    for (size_t i = 1; i < deadlines.size(); ++i) {
+      const double step = static_cast<double>(deadlines[i] - deadlines[i - 1]);
+      EXPECT_NEAR(step, spacing_ns, 1.0) << width << "x" << fps << " packet " << i;
+    }
+    // The last packet of a frame is due when its last column, W-1, is observed.
+    EXPECT_EQ(packet_deadline_offset_ns(clock, width - 16, 16), clock.column_offset_ns(width - 1));
+  }
+}
+
+TEST(FrameId, WrapsAtSixteenBitsOrThirtyTwoForFusa) {
+  const auto standard = format_of(1024, 10, {0, 1023});
+  EXPECT_EQ(frame_id_of(0, standard), 0u);
+  EXPECT_EQ(frame_id_of(1, standard), 1u);
+  EXPECT_EQ(frame_id_of(65535, standard), 65535u);
+  EXPECT_EQ(frame_id_of(65536, standard), 0u);
+  EXPECT_EQ(frame_id_of(65537, standard), 1u);
+
+  auto fusa = standard;
+  fusa.header_type = HeaderType::kFusa;
+  EXPECT_TRUE(uses_fusa_header(fusa));
+  EXPECT_EQ(frame_id_of(65536, fusa), 65536u);
+  EXPECT_EQ(frame_id_of(uint64_t{1} << 32, fusa), 0u);
+  auto fusa_profile = standard;
+  fusa_profile.udp_profile_lidar = UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
+  EXPECT_EQ(frame_id_of(70000, fusa_profile), 70000u);
+}
+
+Pose pose_of(Eigen::Vector3d translation, Eigen::Quaterniond rotation) {
+  Pose pose;
+  pose.translation = translation;
+  pose.rotation = rotation;
+  return pose;
+}
+
+TEST(ImuModel, AtRestReadsOneGUp) {
+  const auto sample = imu_sample(Trajectory::constant(Pose{}), 1.0, 5'000'000'000);
+  EXPECT_NEAR(sample.accel_g[0], 0.0f, 1e-6f);
+  EXPECT_NEAR(sample.accel_g[1], 0.0f, 1e-6f);
+  EXPECT_NEAR(sample.accel_g[2], 1.0f, 1e-6f);
+  for (const float w : sample.gyro_deg_s) EXPECT_NEAR(w, 0.0f, 1e-6f);
+  EXPECT_EQ(sample.sys_ts_ns, 5'000'000'000u);
+  EXPECT_LT(sample.accel_ts_ns, sample.sys_ts_ns);
+  EXPECT_NE(sample.gyro_ts_ns, 0u);
+}
+
+// Rolled 90 degrees about +X: the sensor's +Y points up, so gravity's reaction reads +1 g on Y.
+TEST(ImuModel, GravityIsExpressedInTheSensorFrame) {
+  const Eigen::Quaterniond roll(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX()));
+  const auto sample = imu_sample(Trajectory::constant(pose_of(Eigen::Vector3d(1, 2, 3), roll)), 0.0, 1);
+  EXPECT_NEAR(sample.accel_g[0], 0.0f, 1e-6f);
+  EXPECT_NEAR(sample.accel_g[1], 1.0f, 1e-6f);
+  EXPECT_NEAR(sample.accel_g[2], 0.0f, 1e-6f);
+}
+
+// Yawing at 0.5 rad/s while moving at constant velocity: gyro z = 28.65 deg/s, no extra force.
+TEST(ImuModel, ReadsTheTrajectorysRotationRate) {
+  std::vector<StampedPose> samples;
+  for (int i = 0; i <= 100; ++i) {
+    const double t = 0.1 * i;
+    const Eigen::Quaterniond yaw(Eigen::AngleAxisd(0.5 * t, Eigen::Vector3d::UnitZ()));
+    samples.push_back({t, pose_of(Eigen::Vector3d(2.0 * t, 0, 0), yaw)});
+  }
+  const Trajectory trajectory(samples, false);
+  const auto sample = imu_sample(trajectory, 5.0, 1);
+  EXPECT_NEAR(sample.gyro_deg_s[2], 0.5 * 180.0 / std::numbers::pi, 1e-3);
+  EXPECT_NEAR(sample.gyro_deg_s[0], 0.0f, 1e-4f);
+  EXPECT_NEAR(sample.accel_g[2], 1.0f, 1e-5f);
+  EXPECT_NEAR(std::hypot(sample.accel_g[0], sample.accel_g[1]), 0.0, 1e-5);
+}
+
+}  // namespace
+}  // namespace lidartwin
