@@ -1,9 +1,11 @@
 #pragma once
 // Classic libpcap captures of Ethernet/IPv4/UDP, as real Ouster captures are (protocol doc 9).
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace lidartwin {
@@ -15,19 +17,54 @@ struct UdpDatagram {
   uint16_t src_port = 0;
   uint16_t dst_port = 0;
   std::vector<uint8_t> payload;  // reassembled from IPv4 fragments
+  friend bool operator==(const UdpDatagram&, const UdpDatagram&) = default;
+};
+
+// What a read saw besides the datagrams it returned.
+struct PcapStats {
+  size_t records = 0;                // capture records (link-layer frames) read
+  size_t datagrams = 0;              // UDP datagrams returned
+  size_t fragments = 0;              // records that carried an IPv4 fragment
+  size_t not_udp = 0;                // frames skipped: not IPv4 (ARP, IPv6…), or IPv4 but not UDP
+  size_t truncated_frames = 0;       // frames cut short by the capture's snaplen, skipped
+  size_t incomplete_datagrams = 0;   // fragment sets that never completed, dropped
+  size_t conflicting_datagrams = 0;  // fragment sets with overlapping, disagreeing bytes, dropped
+  friend bool operator==(const PcapStats&, const PcapStats&) = default;
+};
+
+// Reads a capture one UDP datagram at a time, reassembling IPv4 fragments, so a capture larger
+// than memory can be processed. Link types: Ethernet (with 802.1Q tags), Linux cooked (SLL and
+// SLL2) and raw IP. Throws InputError naming the file and the problem (not a pcap, truncated
+// record, bad IP or UDP header, unsupported link type); never crashes on hostile input.
+class PcapReader {
+ public:
+  explicit PcapReader(const std::filesystem::path& path);
+  ~PcapReader();
+  PcapReader(const PcapReader&) = delete;
+  PcapReader& operator=(const PcapReader&) = delete;
+  // The next datagram in order of completion, or nullopt at the end of the capture.
+  std::optional<UdpDatagram> next();
+  const PcapStats& stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 // Reads every UDP datagram, reassembling IPv4 fragments. Throws InputError naming the file and
 // the problem (not a pcap, truncated record, bad IP header…); never crashes on hostile input.
 std::vector<UdpDatagram> read_pcap(const std::filesystem::path& path);
+std::vector<UdpDatagram> read_pcap(const std::filesystem::path& path, PcapStats& stats);
 
 // Writes datagrams as a real capture has them: Ethernet + IPv4 + UDP, fragmented at a 1500-byte MTU.
+// Timestamps are stored in microseconds (classic pcap), so sub-microsecond parts are dropped.
 class PcapWriter {
  public:
   explicit PcapWriter(const std::filesystem::path& path);  // throws InputError if it cannot open
   ~PcapWriter();
   PcapWriter(const PcapWriter&) = delete;
   PcapWriter& operator=(const PcapWriter&) = delete;
+  // Throws InputError if the payload does not fit one UDP datagram (65507 bytes).
   void write(const UdpDatagram& datagram);
   void flush();
 

@@ -1,0 +1,92 @@
+#include "pcap/frame_encoder.h"
+
+#include <algorithm>
+#include <cassert>
+
+#include "pcap/byte_order.h"
+
+namespace lidartwin::pcap_detail {
+namespace {
+
+constexpr size_t kEthernetHeader = 14;
+constexpr size_t kIpv4Header = 20;
+constexpr size_t kUdpHeader = 8;
+constexpr uint8_t kTtl = 64;
+constexpr uint8_t kProtocolUdp = 17;
+
+uint32_t add_words(std::span<const uint8_t> bytes, uint32_t sum) {
+  size_t i = 0;
+  for (; i + 1 < bytes.size(); i += 2) sum += load_be16(bytes, i);
+  if (i < bytes.size()) sum += static_cast<uint32_t>(bytes[i]) << 8;
+  return sum;
+}
+
+// Locally administered MACs derived from the IPs, so a capture shows one stable address per host.
+void write_ethernet(std::span<uint8_t> frame, const UdpDatagram& datagram) {
+  const uint8_t dst[6] = {0x02, 0x00, datagram.dst_ip[0], datagram.dst_ip[1], datagram.dst_ip[2], datagram.dst_ip[3]};
+  const uint8_t src[6] = {0x02, 0x00, datagram.src_ip[0], datagram.src_ip[1], datagram.src_ip[2], datagram.src_ip[3]};
+  std::copy(dst, dst + 6, frame.begin());
+  std::copy(src, src + 6, frame.begin() + 6);
+  store_be16(frame, 12, 0x0800);
+}
+
+void write_ipv4(std::span<uint8_t> ip, const UdpDatagram& datagram, uint16_t id, size_t offset,
+                size_t length, bool more_fragments) {
+  ip[0] = 0x45;  // version 4, 5-word header
+  ip[1] = 0;
+  store_be16(ip, 2, static_cast<uint16_t>(kIpv4Header + length));
+  store_be16(ip, 4, id);
+  store_be16(ip, 6, static_cast<uint16_t>((more_fragments ? 0x2000 : 0) | (offset / 8)));
+  ip[8] = kTtl;
+  ip[9] = kProtocolUdp;
+  store_be16(ip, 10, 0);
+  std::copy(datagram.src_ip.begin(), datagram.src_ip.end(), ip.begin() + 12);
+  std::copy(datagram.dst_ip.begin(), datagram.dst_ip.end(), ip.begin() + 16);
+  store_be16(ip, 10, internet_checksum(ip.first(kIpv4Header)));
+}
+
+// UDP header plus payload: the IP payload that fragments share. The checksum covers the RFC 768
+// pseudo-header; 0 would mean "no checksum", so a computed 0 is sent as 0xFFFF.
+void write_udp(std::vector<uint8_t>& udp, const UdpDatagram& datagram) {
+  const size_t length = kUdpHeader + datagram.payload.size();
+  udp.resize(length);
+  store_be16(udp, 0, datagram.src_port);
+  store_be16(udp, 2, datagram.dst_port);
+  store_be16(udp, 4, static_cast<uint16_t>(length));
+  store_be16(udp, 6, 0);
+  std::copy(datagram.payload.begin(), datagram.payload.end(), udp.begin() + kUdpHeader);
+  uint32_t pseudo = add_words(datagram.src_ip, 0);
+  pseudo = add_words(datagram.dst_ip, pseudo) + kProtocolUdp + static_cast<uint32_t>(length);
+  const uint16_t checksum = internet_checksum(udp, pseudo);
+  store_be16(udp, 6, checksum == 0 ? 0xFFFF : checksum);
+}
+
+}  // namespace
+
+uint16_t internet_checksum(std::span<const uint8_t> bytes, uint32_t initial_sum) {
+  uint32_t sum = add_words(bytes, initial_sum);
+  while (sum >> 16) sum = (sum & 0xFFFF) + (sum >> 16);
+  return static_cast<uint16_t>(~sum & 0xFFFF);
+}
+
+void encode_frames(const UdpDatagram& datagram, uint16_t ip_id, FrameScratch& scratch,
+                   const std::function<void(std::span<const uint8_t>)>& emit, size_t mtu) {
+  assert(datagram.payload.size() <= kMaxUdpPayload);
+  std::vector<uint8_t>& udp = scratch.udp;
+  write_udp(udp, datagram);
+  // Every fragment but the last carries a multiple of 8 bytes (RFC 791): 1480 at a 1500 MTU.
+  const size_t per_fragment = (mtu - kIpv4Header) / 8 * 8;
+  for (size_t offset = 0; offset < udp.size(); offset += per_fragment) {
+    const size_t length = std::min(per_fragment, udp.size() - offset);
+    const bool more = offset + length < udp.size();
+    scratch.frame.resize(kEthernetHeader + kIpv4Header + length);
+    std::span<uint8_t> frame(scratch.frame);
+    write_ethernet(frame, datagram);
+    write_ipv4(frame.subspan(kEthernetHeader), datagram, ip_id, offset, length, more);
+    std::copy_n(udp.begin() + static_cast<std::ptrdiff_t>(offset), length,
+                frame.begin() + kEthernetHeader + kIpv4Header);
+    emit(frame);
+  }
+}
+
+}  // namespace lidartwin::pcap_detail
