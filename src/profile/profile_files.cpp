@@ -1,0 +1,63 @@
+// Finding and reading profile files: a bare name is looked up in profiles_dir(), anything that
+// looks like a path is read as given.
+#include <algorithm>
+#include <cstdlib>
+#include <fstream>
+
+#include "lidartwin/error.h"
+#include "lidartwin/profile/sensor_profile.h"
+
+namespace lidartwin {
+namespace {
+
+bool looks_like_path(std::string_view name) {
+  return name.find('/') != std::string_view::npos || name.ends_with(".json");
+}
+
+std::string list_available() {
+  std::string out;
+  for (const auto& name : available_profiles()) out += (out.empty() ? "" : ", ") + name;
+  return out.empty() ? "none" : out;
+}
+
+nlohmann::json read_json(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot open profile file");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path.string() + ": not valid JSON: " + e.what());
+  }
+}
+
+}  // namespace
+
+std::filesystem::path profiles_dir() {
+  const char* overridden = std::getenv("LIDARTWIN_PROFILES");
+  if (overridden != nullptr && *overridden != '\0') return overridden;
+  return std::filesystem::path(LIDARTWIN_SOURCE_DIR) / "profiles";
+}
+
+std::vector<std::string> available_profiles() {
+  std::vector<std::string> names;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(profiles_dir(), error)) {
+    if (entry.path().extension() == ".json") names.push_back(entry.path().stem().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+SensorProfile load_profile(std::string_view name_or_path) {
+  std::filesystem::path path(name_or_path);
+  if (!looks_like_path(name_or_path)) {
+    path = profiles_dir() / (std::string(name_or_path) + ".json");
+    if (!std::filesystem::exists(path)) {
+      throw InputError("profile \"" + std::string(name_or_path) + "\": no " + path.string() +
+                       "; available: " + list_available());
+    }
+  }
+  return parse_profile(read_json(path), path.string());
+}
+
+}  // namespace lidartwin
