@@ -9,11 +9,21 @@
 
 namespace lidartwin {
 
+// Casting from origin_m along direction with tnear = range_offset_m starts the physical ray at the
+// beam origin; the distance from origin_m to a hit is exactly the range the SDK expects (7.2).
 struct BeamRay {
   Eigen::Vector3f origin_m;   // the SDK's virtual origin, n mm behind the beam origin (sensor frame)
   Eigen::Vector3f direction;  // unit vector (sensor frame)
   float range_offset_m = 0;   // n: ranges shorter than this would start behind the beam origin
 };
+
+// One entry of the SDK's XYZ look-up table (7.1) in double precision, sensor frame:
+// point = range_mm * 0.001 * direction + origin_m.
+struct SdkLutEntry {
+  Eigen::Vector3d direction;
+  Eigen::Vector3d origin_m;
+};
+SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id);
 
 class BeamGeometry {
  public:
@@ -28,6 +38,7 @@ class BeamGeometry {
   int columns_ = 0;
   int rows_ = 0;
   std::vector<BeamRay> rays_;  // column-major like Scan
+  BeamIntrinsics beams_;       // for point(), in double precision
 };
 
 }  // namespace lidartwin

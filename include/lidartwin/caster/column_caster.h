@@ -1,5 +1,6 @@
 #pragma once
 // Casts the beams of one column at one pose with Embree (16-ray coherent packets).
+#include <limits>
 #include <span>
 
 #include "lidartwin/caster/beam_geometry.h"
@@ -11,13 +12,20 @@ namespace lidartwin {
 
 class ColumnCaster {
  public:
-  ColumnCaster(const Scene& scene, const BeamGeometry& geometry);
+  // Hits farther than max_range_m from the virtual origin are misses (Embree's tfar).
+  ColumnCaster(const Scene& scene, const BeamGeometry& geometry,
+               float max_range_m = std::numeric_limits<float>::infinity());
   // out.size() == geometry.rows(). Thread-safe (const): workers cast different columns at once.
   void cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const;
 
  private:
   const Scene& scene_;
   const BeamGeometry& geometry_;
+  float max_range_m_;
 };
+
+// Sets IdealReturn::edge from the vertical neighbours in a column: 1 where a neighbour's range
+// differs by a depth step (> max(0.3 m, 5 % of the farther range)) or only one of the two hit.
+void mark_vertical_edges(std::span<IdealReturn> column);
 
 }  // namespace lidartwin
