@@ -15,8 +15,12 @@ namespace lidartwin {
 // CRC-64/XZ (protocol doc 4.5), table-sliced: it runs on every packet the daemon sends.
 uint64_t crc64_xz(std::span<const uint8_t> bytes);
 
-// How the last 8 bytes of a non-legacy packet were (or are to be) filled.
-enum class FooterKind { kCrc64, kFw2Marker, kOther };
+// How the last 8 bytes of a non-legacy packet were (or are to be) filled (protocol doc 4.5).
+// kFw2Marker: 0xDEADBEEF0000C0DE, as FW 2.3/2.4 send. kZero: all zero, as FW 2.2 and the FW 3.1
+// FUSA sample send (the SDK sees no CRC in FUSA packets). kOther: neither these nor a valid CRC
+// (decode only; encode leaves zeros). kNone: LEGACY packets have no footer.
+enum class FooterKind { kCrc64, kFw2Marker, kOther, kZero, kNone };
+inline constexpr uint64_t kFw2FooterMarker = 0xDEADBEEF0000C0DEull;
 
 // Built once from a data format, then only read (like the SDK's PacketFormat). Construction
 // validates the format (pixels 1-128, columns_per_packet 1-64 dividing the width, size <= 65535)
@@ -30,6 +34,8 @@ class PacketFormat {
   size_t imu_packet_size() const;
   size_t column_size() const;
   int packets_per_frame() const;  // packets that carry at least one column of column_window
+  // Whether the packet starting at first_column carries a column of column_window (is sent).
+  bool packet_in_window(int first_column) const;
   bool has_channel(ChannelField field) const;
   // Pixel channel value limits: largest value representable (after upshift) and the step (1 << upshift).
   uint32_t channel_max(ChannelField field) const;
@@ -45,10 +51,13 @@ class PacketFormat {
     PacketHeader header;
     int first_measurement_id = 0;
     FooterKind footer = FooterKind::kCrc64;
-    bool crc_ok = true;  // false only when the footer is neither a valid CRC nor the FW 2 marker
+    bool crc_ok = true;  // false only when footer == kOther (a CRC that does not match)
   };
   // Reads one lidar packet into scan (columns placed by measurement_id; ids >= W are skipped).
-  // Returns nullopt and sets *error (naming the problem) if the packet is malformed.
+  // Pixels of invalid (status bit 0 = 0) columns are decoded too; real FW sends them as zeros.
+  // scan.packet_received[m / columns_per_packet] is incremented, and scan.header is set from the
+  // first packet the scan receives. Returns nullopt and sets *error (if not null, naming the
+  // problem) when the packet or the scan does not fit this format; the scan is then unchanged.
   std::optional<Decoded> decode(std::span<const uint8_t> packet, Scan& scan, std::string* error) const;
 
  private:

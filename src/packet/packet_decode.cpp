@@ -1,0 +1,114 @@
+// One lidar packet -> Scan. Packets are hostile input: everything is checked before the scan is
+// touched, and every read stays inside the packet (its size is checked first, and the codecs were
+// built for exactly that size).
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include "packet/packet_format_impl.h"
+
+namespace lidartwin {
+namespace {
+
+using packet_detail::ColumnField;
+
+std::optional<PacketFormat::Decoded> failure(std::string* error, std::string message) {
+  if (error != nullptr) *error = "lidar packet: " + std::move(message);
+  return std::nullopt;
+}
+
+std::string shape_of(int width, int height) { return std::to_string(width) + "x" + std::to_string(height); }
+
+// The caller's scan must have this format's shape and channels.
+std::optional<std::string> scan_mismatch(const packet_detail::FormatCodecs& impl, const Scan& scan) {
+  const LidarDataFormat& f = impl.format;
+  const auto packets = static_cast<size_t>(f.columns_per_frame / f.columns_per_packet);
+  const auto w = static_cast<size_t>(f.columns_per_frame);
+  if (scan.width != f.columns_per_frame || scan.height != f.pixels_per_column || scan.timestamp_ns.size() != w ||
+      scan.status.size() != w || scan.packet_received.size() != packets) {
+    return "scan is " + shape_of(scan.width, scan.height) + ", the packet format is " +
+           shape_of(f.columns_per_frame, f.pixels_per_column);
+  }
+  for (const auto& channel : impl.channels) {
+    if (scan.channels[static_cast<size_t>(channel.field)].size() != w * static_cast<size_t>(scan.height)) {
+      return "scan has no " + std::string(to_string(channel.field)) + " channel of " + shape_of(scan.width, scan.height);
+    }
+  }
+  return std::nullopt;
+}
+
+uint64_t column_field(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index, ColumnField field) {
+  for (const auto& c : impl.column) {
+    if (c.field == field) return c.codec.get(packet.subspan(impl.column_start(index)));
+  }
+  return 0;
+}
+
+void decode_column(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index, int m, Scan& scan) {
+  const auto column = packet.subspan(impl.column_start(index));
+  const auto col = static_cast<size_t>(m);
+  for (const auto& [field, codec] : impl.column) {
+    if (field == ColumnField::kTimestamp) scan.timestamp_ns[col] = codec.get(column);
+    if (field == ColumnField::kStatus) scan.status[col] = static_cast<uint32_t>(codec.get(column));
+  }
+  const int height = impl.format.pixels_per_column;
+  for (const auto& [field, codec] : impl.channels) {
+    const std::span<uint32_t> values = scan.column(field, m);
+    for (int row = 0; row < height; ++row) {
+      values[static_cast<size_t>(row)] = static_cast<uint32_t>(codec.get(packet.subspan(impl.pixel_start(index, row))));
+    }
+  }
+}
+
+// Protocol doc 4.5; a CRC equal to the marker or to zero has odds of 2^-64, so those are tested first.
+std::pair<FooterKind, bool> classify_footer(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet) {
+  if (!impl.crc_footer) return {FooterKind::kNone, true};
+  const auto body = packet.first(packet.size() - packet_detail::kCrcBytes);
+  uint64_t word = 0;
+  std::memcpy(&word, packet.data() + body.size(), sizeof word);
+  if (word == kFw2FooterMarker) return {FooterKind::kFw2Marker, true};
+  if (word == 0) return {FooterKind::kZero, true};
+  if (word == crc64_xz(body)) return {FooterKind::kCrc64, true};
+  return {FooterKind::kOther, false};
+}
+
+}  // namespace
+
+std::optional<PacketFormat::Decoded> PacketFormat::decode(std::span<const uint8_t> packet, Scan& scan,
+                                                          std::string* error) const {
+  const Impl& impl = *impl_;
+  const LidarDataFormat& f = impl.format;
+  if (packet.size() != impl.packet_size) {
+    return failure(error, std::to_string(packet.size()) + " bytes, expected " + std::to_string(impl.packet_size) +
+                              " for " + std::string(to_string(f.udp_profile_lidar)) + " with " +
+                              std::to_string(f.pixels_per_column) + " pixels x " +
+                              std::to_string(f.columns_per_packet) + " columns");
+  }
+  if (auto mismatch = scan_mismatch(impl, scan)) return failure(error, *mismatch);
+  Decoded decoded;
+  for (const auto& [field, codec] : impl.header) packet_detail::set_header_value(decoded.header, field, codec.get(packet));
+  if (decoded.header.packet_type != 1) {
+    return failure(error, "packet_type " + std::to_string(decoded.header.packet_type) + ", expected 1 (lidar)");
+  }
+  // LEGACY carries frame_id per column; the SDK takes column 0's (protocol doc 4.2).
+  if (std::none_of(impl.header.begin(), impl.header.end(),
+                   [](const auto& h) { return h.field == packet_detail::HeaderField::kFrameId; })) {
+    decoded.header.frame_id = static_cast<uint32_t>(column_field(impl, packet, 0, ColumnField::kFrameId));
+  }
+  decoded.first_measurement_id = static_cast<int>(column_field(impl, packet, 0, ColumnField::kMeasurementId));
+  std::tie(decoded.footer, decoded.crc_ok) = classify_footer(impl, packet);
+
+  const bool first_packet_of_scan =
+      std::all_of(scan.packet_received.begin(), scan.packet_received.end(), [](uint64_t n) { return n == 0; });
+  if (first_packet_of_scan) scan.header = decoded.header;
+  for (int i = 0; i < f.columns_per_packet; ++i) {
+    const auto m = static_cast<int>(column_field(impl, packet, i, ColumnField::kMeasurementId));
+    if (m < f.columns_per_frame) decode_column(impl, packet, i, m, scan);  // the SDK drops m >= W (4.7)
+  }
+  if (decoded.first_measurement_id < f.columns_per_frame) {
+    ++scan.packet_received[static_cast<size_t>(decoded.first_measurement_id / f.columns_per_packet)];
+  }
+  return decoded;
+}
+
+}  // namespace lidartwin
