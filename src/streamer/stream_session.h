@@ -1,0 +1,76 @@
+#pragma once
+// One StreamConfig's worth of streaming: the lidar column clock and the IMU clock, from a reinit to
+// the next one (protocol doc 2.7: a reinit restarts UDP with a new init_id and frame_id sequence).
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <asio.hpp>
+
+#include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/packet/scan.h"
+#include "lidartwin/pose/pose.h"
+#include "lidartwin/sensor/stream_config.h"
+#include "streamer/render_ahead.h"
+#include "streamer/session_timing.h"
+#include "streamer/stream_counters.h"
+#include "streamer/udp_sender.h"
+
+namespace lidartwin::streamer_detail {
+
+// Lives in a shared_ptr: every pending timer handler holds it, as Asio's connection examples do,
+// so stop() followed by io_context::run() returning leaves nothing dangling.
+//
+// Timing policy (protocol doc 1 items 11-12): packet k of frame n is sent when its last column's
+// time has come, from absolute deadlines (start + column time), never "sleep one period".
+// - A packet whose columns the worker has not finished by its deadline is sent on time anyway,
+//   with its columns marked invalid (status 0, zero pixels) but correct timestamps, ids and
+//   frame_id, and counted as a render stall: the client's scan stays complete and on time, and the
+//   daemon warns (StreamStats::render_stalls). Timing is never bent to wait for the renderer.
+// - Packets overdue by more than one frame period (the process was descheduled for that long)
+//   are skipped and counted, rather than flushed as a burst that would overflow the client's
+//   receive buffer (item 12).
+class StreamSession : public std::enable_shared_from_this<StreamSession> {
+ public:
+  // render is null when the lidar stream is off (udp_port_lidar 0). trajectory, sender and
+  // counters must outlive the session (the Streamer owns them).
+  StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
+                std::shared_ptr<const StreamConfig> config, const Trajectory& trajectory, SessionTiming timing,
+                std::unique_ptr<RenderAhead> render, bool send_imu);
+  void start();
+  void stop();  // cancels both clocks and joins the render worker
+  uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }
+
+ private:
+  int64_t lidar_deadline_ns() const;
+  void arm_lidar();
+  void on_lidar_deadline();
+  void send_lidar_packet(int64_t now_ns);
+  std::span<const uint8_t> blank_packet();
+  void advance_lidar();
+  void skip_overdue_lidar(int64_t now_ns);
+  void arm_imu();
+  void on_imu_deadline();
+
+  asio::steady_timer lidar_timer_;
+  asio::steady_timer imu_timer_;
+  UdpSender& sender_;
+  StreamCounters& counters_;
+  std::shared_ptr<const StreamConfig> config_;
+  const Trajectory& trajectory_;
+  SessionTiming timing_;
+  std::unique_ptr<RenderAhead> render_;
+  bool send_imu_ = false;
+  std::vector<int> packet_columns_;
+  std::unique_ptr<PacketFormat> packet_format_;  // for blank packets; null without lidar
+  Scan blank_scan_;                             // all columns invalid; timestamps set per packet
+  std::vector<uint8_t> blank_bytes_;
+  uint64_t frame_ = 0;
+  size_t packet_index_ = 0;
+  uint64_t imu_index_ = 0;
+  bool stopped_ = false;
+};
+
+}  // namespace lidartwin::streamer_detail

@@ -1,0 +1,154 @@
+#include "lidartwin/streamer/streamer.h"
+
+#include <chrono>
+#include <fstream>
+
+#include <spdlog/spdlog.h>
+
+#include "lidartwin/error.h"
+#include "lidartwin/metadata/metadata.h"
+#include "streamer/render_ahead.h"
+#include "streamer/stream_counters.h"
+#include "streamer/stream_session.h"
+#include "streamer/udp_sender.h"
+
+namespace lidartwin {
+
+using streamer_detail::RenderAhead;
+using streamer_detail::SessionTiming;
+using streamer_detail::steady_now_ns;
+
+namespace {
+constexpr int64_t kTaiMinusUtcNs = 37'000'000'000;  // leap seconds since 2017
+
+std::filesystem::path capture_path(const StreamerOptions& options) {
+  if (options.record_dir.empty()) return {};
+  std::error_code error;
+  std::filesystem::create_directories(options.record_dir, error);
+  if (error) throw InputError("--record " + options.record_dir.string() + ": cannot create it: " + error.message());
+  return options.record_dir / "capture.pcap";
+}
+
+// Column timestamps in the config's timestamp_mode (6.3); see the Streamer comment.
+int64_t timestamp_offset_ns(const StreamConfig& config) {
+  if (config.timestamp_mode != "TIME_FROM_PTP_1588") return 0;
+  const auto wall = std::chrono::duration_cast<std::chrono::nanoseconds>(
+      std::chrono::system_clock::now().time_since_epoch()).count();
+  return wall + kTaiMinusUtcNs - steady_now_ns();
+}
+
+void write_record_metadata(const std::filesystem::path& dir, const StreamConfig& config) {
+  if (dir.empty()) return;
+  std::ofstream out(dir / "metadata.json");
+  out << to_nested_json(config.metadata).dump(2) << "\n";
+  if (!out) spdlog::error("streamer: cannot write {}", (dir / "metadata.json").string());
+}
+
+std::string describe(const asio::ip::address_v4& address, uint16_t port) {
+  return port == 0 ? std::string("off") : address.to_string() + ":" + std::to_string(port);
+}
+}  // namespace
+
+Streamer::Streamer(asio::io_context& io, const Scene& scene, SensorProfile profile, EffectChain chain,
+                   Trajectory trajectory, StreamerOptions options)
+    : io_(io),
+      scene_(scene),
+      profile_(std::move(profile)),
+      chain_(std::move(chain)),
+      trajectory_(std::move(trajectory)),
+      options_(std::move(options)),
+      daemon_start_ns_(steady_now_ns()),
+      sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
+      counters_(std::make_unique<streamer_detail::StreamCounters>()),
+      stats_timer_(io) {
+  arm_stats_timer();
+}
+
+Streamer::~Streamer() = default;
+
+void Streamer::apply(std::shared_ptr<const StreamConfig> config) {
+  asio::post(io_, [this, config = std::move(config)]() mutable { switch_to(std::move(config)); });
+}
+
+void Streamer::on_stats(std::function<void(const StreamStats&)> callback) { stats_callback_ = std::move(callback); }
+
+void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
+  if (stopped_ || !config) return;
+  if (config_ && config_->generation == config->generation) return;
+  stop_session();
+  config_ = config;
+  if (!config->streaming) {
+    spdlog::info("streamer: STANDBY, not sending (config generation {})", config->generation);
+    return;
+  }
+  try {
+    start_session(std::move(config));
+  } catch (const std::exception& e) {
+    // The sensor validated the config; a format the packet encoder refuses is reported, and the
+    // daemon stays up without streaming until the next reinit.
+    spdlog::error("streamer: cannot stream config generation {}: {}", config_->generation, e.what());
+  }
+}
+
+void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
+  const LidarDataFormat& format = config->metadata.format;
+  const bool lidar = config->udp_port_lidar != 0;
+  const bool imu = config->udp_port_imu != 0 && format.udp_profile_imu == UdpProfileImu::kLegacy;
+  if (config->udp_port_imu != 0 && format.udp_profile_imu == UdpProfileImu::kAccel32Gyro32Nmea) {
+    spdlog::warn("streamer: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent");
+  }
+
+  SessionTiming timing;
+  timing.clock = {format.columns_per_frame, format.fps};
+  timing.start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
+  timing.timestamp_offset_ns = timestamp_offset_ns(*config);
+  timing.trajectory_start_s = trajectory_.start_s() + static_cast<double>(timing.start_steady_ns - daemon_start_ns_) * 1e-9;
+
+  std::unique_ptr<RenderAhead> render;
+  if (lidar) {
+    PacketFormat packet_format(format);  // throws InputError naming a format it cannot encode
+    RenderConfig render_config = options_.render;
+    render_config.signal_gain = config->signal_multiplier;
+    // The renderer may keep references to profile and format: both outlive it (Streamer member,
+    // and the config the factory holds).
+    auto make_renderer = [this, config, render_config] {
+      return std::make_unique<FrameRenderer>(scene_, profile_, chain_, config->metadata.format, render_config);
+    };
+    PacketHeader header;
+    header.init_id = config->init_id;
+    header.prod_sn = config->prod_sn;
+    render = std::make_unique<RenderAhead>(make_renderer, packet_format, trajectory_, timing, header,
+                                           options_.frames_ahead);
+    spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
+                 to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
+                 render->packet_columns().size(), packet_format.lidar_packet_size(),
+                 asio::ip::address_v4(options_.source_address).to_string(), sender_->source_port(),
+                 describe(asio::ip::address_v4(config->udp_dest), config->udp_port_lidar), config->init_id);
+  }
+  spdlog::info("streamer: IMU to {}", describe(asio::ip::address_v4(config->udp_dest), imu ? config->udp_port_imu : 0));
+  write_record_metadata(options_.record_dir, *config);
+  session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config), trajectory_,
+                                                              timing, std::move(render), imu);
+  session_->start();
+}
+
+void Streamer::stop_session() {
+  if (!session_) return;
+  session_->stop();
+  session_.reset();
+}
+
+void Streamer::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  stop_session();
+  stats_timer_.cancel();
+  sender_->close();
+  const auto& stats = counters_->stats;
+  spdlog::info("streamer: stopped after {} lidar packets ({} frames) and {} IMU packets; send lateness {}; "
+               "{} render stalls, {} skipped",
+               stats.lidar_packets_sent, stats.frames_sent, stats.imu_packets_sent, counters_->lateness.summary(),
+               stats.render_stalls, counters_->skipped_packets);
+}
+
+}  // namespace lidartwin

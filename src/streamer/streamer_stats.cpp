@@ -1,0 +1,68 @@
+// The Streamer's once-a-second report: StreamStats to the sensor, and warnings when casting or
+// the host cannot keep up (rate-limited: one line per kWarningInterval at most).
+#include <spdlog/spdlog.h>
+
+#include "lidartwin/streamer/streamer.h"
+#include "streamer/stream_counters.h"
+#include "streamer/stream_session.h"
+#include "streamer/udp_sender.h"
+
+namespace lidartwin {
+
+using streamer_detail::steady_now_ns;
+
+namespace {
+constexpr int64_t kStatsPeriodNs = 1'000'000'000;
+constexpr int64_t kWarningIntervalNs = 5'000'000'000;
+constexpr uint64_t kDebugLogTicks = 10;
+}  // namespace
+
+void Streamer::arm_stats_timer() {
+  next_stats_ns_ = (next_stats_ns_ == 0 ? steady_now_ns() : next_stats_ns_) + kStatsPeriodNs;
+  stats_timer_.expires_at(asio::steady_timer::time_point(std::chrono::nanoseconds(next_stats_ns_)));
+  stats_timer_.async_wait([this](const asio::error_code& error) {
+    if (error || stopped_) return;
+    report_stats();
+    arm_stats_timer();
+  });
+}
+
+void Streamer::report_stats() {
+  StreamStats& stats = counters_->stats;
+  const uint64_t busy_ns = session_ ? session_->take_render_busy_ns() : 0;
+  stats.render_load = static_cast<double>(busy_ns) / static_cast<double>(kStatsPeriodNs);
+  warn_if_behind(stats.render_load);
+  if (++stats_ticks_ % kDebugLogTicks == 0) {
+    spdlog::debug("streamer: {} lidar, {} IMU packets; recent send lateness {}; render load {:.2f}",
+                  stats.lidar_packets_sent, stats.imu_packets_sent, counters_->recent_lateness.summary(),
+                  stats.render_load);
+    counters_->recent_lateness = {};
+  }
+  if (stats_callback_) stats_callback_(stats);
+}
+
+void Streamer::warn_if_behind(double render_load) {
+  const StreamStats& stats = counters_->stats;
+  const uint64_t skipped = counters_->skipped_packets + counters_->imu_skipped;
+  const bool news = stats.render_stalls > warned_stalls_ || skipped > warned_skips_ || sender_->errors() > warned_errors_;
+  const int64_t now = steady_now_ns();
+  if (!news || now - last_warning_ns_ < kWarningIntervalNs) return;
+  if (stats.render_stalls > warned_stalls_) {
+    spdlog::warn("streamer: casting is behind the send clock: {} packets sent on time with their columns marked "
+                 "invalid ({} in total; render load {:.2f}; try fewer --threads elsewhere, a smaller scene or mode)",
+                 stats.render_stalls - warned_stalls_, stats.render_stalls, render_load);
+  }
+  if (skipped > warned_skips_) {
+    spdlog::warn("streamer: the host stalled the send clock for more than a frame: {} packets skipped ({} in total)",
+                 skipped - warned_skips_, skipped);
+  }
+  if (sender_->errors() > warned_errors_) {
+    spdlog::warn("streamer: {} UDP sends failed ({} in total)", sender_->errors() - warned_errors_, sender_->errors());
+  }
+  warned_stalls_ = stats.render_stalls;
+  warned_skips_ = skipped;
+  warned_errors_ = sender_->errors();
+  last_warning_ns_ = now;
+}
+
+}  // namespace lidartwin

@@ -1,0 +1,67 @@
+#include "streamer/udp_sender.h"
+
+#include <chrono>
+
+#include <spdlog/spdlog.h>
+
+#include "lidartwin/error.h"
+
+namespace lidartwin::streamer_detail {
+
+namespace {
+// Room for several frames of the largest packets: the send clock must never block on the kernel.
+constexpr int kSendBufferBytes = 8 * 1024 * 1024;
+
+asio::ip::address_v4 to_address(Ipv4 ip) { return asio::ip::address_v4(ip); }
+
+uint64_t wall_clock_ns() {
+  return static_cast<uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
+}
+}  // namespace
+
+UdpSender::UdpSender(asio::io_context& io, Ipv4 source, const std::filesystem::path& record_pcap)
+    : socket_(io), source_(source) {
+  asio::error_code error;
+  socket_.open(asio::ip::udp::v4(), error);
+  if (!error) socket_.bind(asio::ip::udp::endpoint(to_address(source), 0), error);
+  if (error) {
+    throw InputError("cannot bind the UDP sending socket to " + to_address(source).to_string() +
+                     ": " + error.message() + " (is --address an address of this host?)");
+  }
+  socket_.set_option(asio::socket_base::send_buffer_size(kSendBufferBytes), error);
+  socket_.non_blocking(true, error);
+  source_port_ = socket_.local_endpoint(error).port();
+  if (!record_pcap.empty()) recorder_ = std::make_unique<PcapWriter>(record_pcap);
+}
+
+bool UdpSender::send(Ipv4 destination, uint16_t port, std::span<const uint8_t> datagram) {
+  asio::error_code error;
+  socket_.send_to(asio::buffer(datagram.data(), datagram.size()),
+                  asio::ip::udp::endpoint(to_address(destination), port), 0, error);
+  if (error) {
+    // Logged by the caller's rate-limited stats line; one line per datagram would flood the log.
+    ++errors_;
+    return false;
+  }
+  if (recorder_) record(destination, port, datagram);
+  return true;
+}
+
+void UdpSender::record(Ipv4 destination, uint16_t port, std::span<const uint8_t> datagram) {
+  record_buffer_.timestamp_ns = wall_clock_ns();
+  record_buffer_.src_ip = source_;
+  record_buffer_.dst_ip = destination;
+  record_buffer_.src_port = source_port_;
+  record_buffer_.dst_port = port;
+  record_buffer_.payload.assign(datagram.begin(), datagram.end());
+  recorder_->write(record_buffer_);
+}
+
+void UdpSender::close() {
+  asio::error_code ignored;
+  socket_.close(ignored);
+  if (recorder_) recorder_->flush();
+}
+
+}  // namespace lidartwin::streamer_detail
