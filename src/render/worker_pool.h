@@ -1,0 +1,47 @@
+#pragma once
+// A small pool owned by one renderer: the caller and threads-1 workers drain a shared counter of
+// work items. Which thread runs an item never changes its result (items write disjoint outputs,
+// noise is keyed by pixel), so the thread count is free.
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <stop_token>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace lidartwin::render_detail {
+
+class WorkerPool {
+ public:
+  // threads: total including the calling thread; 0 = std::thread::hardware_concurrency().
+  explicit WorkerPool(int threads);
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  int size() const { return static_cast<int>(threads_.size()) + 1; }
+  // Calls task(worker, item) once for every item in [0, count), worker in [0, size()); returns when
+  // all are done. One run at a time (later callers wait); the first exception is rethrown.
+  void run(int count, const std::function<void(int worker, int item)>& task);
+
+ private:
+  void worker_loop(const std::stop_token& stop, int worker);
+  void drain(int worker);
+
+  std::mutex run_mutex_;
+  std::mutex mutex_;
+  std::condition_variable_any wake_;
+  std::condition_variable done_;
+  const std::function<void(int, int)>* task_ = nullptr;
+  int count_ = 0;
+  std::atomic<int> next_{0};
+  int busy_ = 0;
+  uint64_t generation_ = 0;
+  std::exception_ptr error_;
+  std::vector<std::jthread> threads_;  // last: stopped and joined before the members above go
+};
+
+}  // namespace lidartwin::render_detail
