@@ -14,6 +14,10 @@ struct RTCDeviceTy;
 
 namespace lidartwin {
 
+// The conversion itself, for tools that write glTF from world-frame geometry (tools/scenegen):
+// world_point = world_from_gltf() * gltf_point.
+Eigen::Matrix3d world_from_gltf();
+
 // Surface optics at 865 nm. From glTF materials: extras.reflectivity (0..1, diffuse), else the
 // luminance of baseColorFactor; extras.retroreflective (bool); extras.specular (0..1).
 struct Material {
@@ -37,6 +41,7 @@ class Scene {
   // Material of an Embree hit (geomID); every geometry has one.
   const Material& material(unsigned geom_id) const;
   size_t triangle_count() const;
+  size_t geometry_count() const;  // one Embree geometry per placed glTF primitive
   Eigen::AlignedBox3d bounds() const;  // world frame
 
  private:
