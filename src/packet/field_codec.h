@@ -26,37 +26,52 @@ struct FieldCodec {
   uint32_t offset = 0;  // first byte, relative to the span handed to get/set
   uint32_t bytes = 0;   // bytes the field touches (1..8); 0 = absent field
   uint64_t mask = 0;    // field bits within the little-endian word at offset
-  int shift = 0;        // word >> shift (or << -shift when upshifted) = value
+  int shift = 0;        // (word & mask) >> shift, or << -shift, = value in protocol units
+  int upshift = 0;      // value = packet bits << upshift (FieldSpec)
 
-  // Table entries are checked at compile time (field_table.cpp), so this only asserts.
   static constexpr FieldCodec from(FieldSpec spec, int base_byte = 0) {
-    const int bit = spec.bit_offset % 8;
-    assert(spec.bit_offset >= 0 && spec.bit_width >= 1 && bit + spec.bit_width <= 64);
-    assert(spec.bit_width + spec.upshift <= 64);
-    FieldCodec codec;
-    codec.offset = static_cast<uint32_t>(base_byte + spec.bit_offset / 8);
-    codec.bytes = static_cast<uint32_t>((bit + spec.bit_width + 7) / 8);
-    codec.mask = (spec.bit_width == 64 ? ~uint64_t{0} : (uint64_t{1} << spec.bit_width) - 1) << bit;
-    codec.shift = bit - spec.upshift;
-    return codec;
+    return make(base_byte + spec.bit_offset / 8, spec.bit_offset % 8, spec);
+  }
+
+  // The same field addressed from the start of its aligned 64-bit word (offset a multiple of 8),
+  // for pixels handled a word at a time (packet_encode.cpp). The field must not cross a word.
+  static constexpr FieldCodec in_word(FieldSpec spec) {
+    assert(spec.bit_offset / 64 == (spec.bit_offset + spec.bit_width - 1) / 64);
+    return make(spec.bit_offset / 64 * 8, spec.bit_offset % 64, spec);
   }
 
   bool present() const { return bytes != 0; }
   // Largest value in protocol units, and the step between representable values.
   uint64_t max_value() const { return from_word(mask); }
-  uint64_t step() const { return shift < 0 ? uint64_t{1} << -shift : 1; }
+  uint64_t step() const { return uint64_t{1} << upshift; }
 
-  uint64_t get(std::span<const uint8_t> buf) const { return from_word(load(buf) & mask); }
+  uint64_t get(std::span<const uint8_t> buf) const { return extract(load(buf)); }
 
   // Bits of value beyond the field are a caller bug; they are masked off so neighbours stay intact.
   // Bits below the step (an RNG15 range that is not a multiple of 8 mm) are truncated, as the
   // packet cannot carry them.
   void set(std::span<uint8_t> buf, uint64_t value) const {
     assert(from_word(to_word(value) & mask) == (value & ~(step() - 1)));
-    store(buf, (load(buf) & ~mask) | (to_word(value) & mask));
+    store(buf, (load(buf) & ~mask) | place(value));
   }
 
+  // The field's value from the little-endian word at offset, and back.
+  uint64_t extract(uint64_t word) const { return from_word(word & mask); }
+  uint64_t place(uint64_t value) const { return to_word(value) & mask; }
+
  private:
+  // Table entries are checked at compile time (field_table.cpp), so this only asserts.
+  static constexpr FieldCodec make(int byte, int bit, FieldSpec spec) {
+    assert(byte >= 0 && spec.bit_width >= 1 && bit + spec.bit_width <= 64 && spec.bit_width + spec.upshift <= 64);
+    FieldCodec codec;
+    codec.offset = static_cast<uint32_t>(byte);
+    codec.bytes = static_cast<uint32_t>((bit + spec.bit_width + 7) / 8);
+    codec.mask = (spec.bit_width == 64 ? ~uint64_t{0} : (uint64_t{1} << spec.bit_width) - 1) << bit;
+    codec.shift = bit - spec.upshift;
+    codec.upshift = spec.upshift;
+    return codec;
+  }
+
   uint64_t from_word(uint64_t word) const { return shift >= 0 ? word >> shift : word << -shift; }
   uint64_t to_word(uint64_t value) const { return shift >= 0 ? value << shift : value >> -shift; }
 

@@ -122,7 +122,7 @@ constexpr std::array<ProfileSpec, 6> kProfiles{{
 }};
 
 // Compile-time checks of every table: fields lie inside their struct, fit one 64-bit access, and
-// do not overlap.
+// do not overlap; pixel fields stay inside one aligned 64-bit word.
 template <typename Spec>
 constexpr bool fields_fit(std::span<const Spec> specs, int struct_bytes) {
   for (size_t i = 0; i < specs.size(); ++i) {
@@ -137,9 +137,17 @@ constexpr bool fields_fit(std::span<const Spec> specs, int struct_bytes) {
   return true;
 }
 
+constexpr bool within_64_bit_words(std::span<const ChannelSpec> specs) {
+  for (const ChannelSpec& s : specs) {
+    if (s.bits.bit_offset / 64 != (s.bits.bit_offset + s.bits.bit_width - 1) / 64) return false;
+  }
+  return true;
+}
+
 constexpr bool tables_valid() {
   for (const ProfileSpec& p : kProfiles) {
-    if (!fields_fit(p.channels, p.pixel_bytes)) return false;
+    if (!fields_fit(p.channels, p.pixel_bytes) || !within_64_bit_words(p.channels)) return false;
+    if (p.pixel_bytes > kMaxPixelBytes) return false;
   }
   for (const PacketLayout* l : {&kLegacyLayout, &kStandardLayout}) {
     if (!fields_fit(l->column_header, l->column_header_bytes)) return false;

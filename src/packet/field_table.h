@@ -66,5 +66,7 @@ const ProfileSpec& profile_spec(UdpProfileLidar profile);
 std::span<const HeaderSpec> header_spec(HeaderType type);
 
 inline constexpr int kCrcBytes = 8;
+// Pixels are assembled in up to three 64-bit words; no channel field crosses a word boundary.
+inline constexpr int kMaxPixelBytes = 24;
 
 }  // namespace lidartwin::packet_detail

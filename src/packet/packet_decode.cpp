@@ -2,6 +2,8 @@
 // touched, and every read stays inside the packet (its size is checked first, and the codecs were
 // built for exactly that size).
 #include <algorithm>
+#include <array>
+#include <cassert>
 #include <cstring>
 #include <string>
 
@@ -44,20 +46,52 @@ uint64_t column_field(const packet_detail::FormatCodecs& impl, std::span<const u
   return 0;
 }
 
-void decode_column(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index, int m, Scan& scan) {
+using ChannelValues = std::array<uint32_t*, kChannelFieldCount>;
+
+// The mirror of encode_rows (packet_encode.cpp): pixels are copied into 64-bit words with
+// fixed-size moves, then each field is extracted over all rows in one tight loop.
+template <size_t kPixelBytes>
+void decode_rows(const packet_detail::FormatCodecs& impl, const uint8_t* pixels, const ChannelValues& values) {
+  constexpr size_t kWords = (kPixelBytes + 7) / 8;
+  const auto height = static_cast<size_t>(impl.format.pixels_per_column);
+  std::array<std::array<uint64_t, kWords>, kMaxPixelsPerColumn> words;
+  for (size_t row = 0; row < height; ++row) {
+    words[row] = {};
+    std::memcpy(words[row].data(), pixels + row * kPixelBytes, kPixelBytes);
+  }
+  for (size_t k = 0; k < impl.channels.size(); ++k) {
+    const packet_detail::FieldCodec codec = impl.channels[k].codec;
+    const size_t w = codec.offset / 8;
+    uint32_t* v = values[k];
+    for (size_t row = 0; row < height; ++row) v[row] = static_cast<uint32_t>(codec.extract(words[row][w]));
+  }
+}
+
+void decode_pixels(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index, int m,
+                   Scan& scan) {
+  ChannelValues values{};
+  for (size_t k = 0; k < impl.channels.size(); ++k) values[k] = scan.column(impl.channels[k].field, m).data();
+  const uint8_t* pixels = packet.data() + impl.pixel_start(index, 0);
+  switch (impl.pixel_bytes) {
+    case 4: return decode_rows<4>(impl, pixels, values);
+    case 8: return decode_rows<8>(impl, pixels, values);
+    case 12: return decode_rows<12>(impl, pixels, values);
+    case 16: return decode_rows<16>(impl, pixels, values);
+    case 20: return decode_rows<20>(impl, pixels, values);
+    case 24: return decode_rows<24>(impl, pixels, values);
+    default: assert(false && "pixel size missing from the dispatch");
+  }
+}
+
+void decode_column(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index, int m,
+                   Scan& scan) {
   const auto column = packet.subspan(impl.column_start(index));
   const auto col = static_cast<size_t>(m);
   for (const auto& [field, codec] : impl.column) {
     if (field == ColumnField::kTimestamp) scan.timestamp_ns[col] = codec.get(column);
     if (field == ColumnField::kStatus) scan.status[col] = static_cast<uint32_t>(codec.get(column));
   }
-  const int height = impl.format.pixels_per_column;
-  for (const auto& [field, codec] : impl.channels) {
-    const std::span<uint32_t> values = scan.column(field, m);
-    for (int row = 0; row < height; ++row) {
-      values[static_cast<size_t>(row)] = static_cast<uint32_t>(codec.get(packet.subspan(impl.pixel_start(index, row))));
-    }
-  }
+  decode_pixels(impl, packet, index, m, scan);
 }
 
 // Protocol doc 4.5; a CRC equal to the marker or to zero has odds of 2^-64, so those are tested first.

@@ -1,5 +1,6 @@
 // Scan -> one lidar packet. Runs for every packet the daemon sends: no allocation, one pass.
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cstring>
 
@@ -25,17 +26,52 @@ uint64_t column_value(const packet_detail::FormatCodecs& impl, ColumnField field
   return 0;
 }
 
+using ChannelValues = std::array<const uint32_t*, kChannelFieldCount>;
+
+// One column's pixels are assembled in 64-bit words on the stack, one field at a time over all
+// rows (a tight loop with the codec in registers, which the compiler vectorizes), then each pixel
+// is stored with a fixed-size move (kPixelBytes is a template argument). Read-modify-write of
+// overlapping 8-byte words in the packet would instead stall store forwarding on 4-byte pixels.
+template <size_t kPixelBytes>
+void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& values, uint8_t* pixels) {
+  constexpr size_t kWords = (kPixelBytes + 7) / 8;
+  const auto height = static_cast<size_t>(impl.format.pixels_per_column);
+  std::array<std::array<uint64_t, kWords>, kMaxPixelsPerColumn> words;
+  std::fill_n(words.begin(), height, std::array<uint64_t, kWords>{});
+  for (size_t k = 0; k < impl.channels.size(); ++k) {
+    const packet_detail::FieldCodec codec = impl.channels[k].codec;
+    const size_t w = codec.offset / 8;
+    const uint32_t* v = values[k];
+    for (size_t row = 0; row < height; ++row) words[row][w] |= codec.place(v[row]);
+  }
+  for (size_t row = 0; row < height; ++row) std::memcpy(pixels + row * kPixelBytes, words[row].data(), kPixelBytes);
+}
+
+void encode_pixels(const packet_detail::FormatCodecs& impl, const Scan& scan, int index, int m,
+                   std::span<uint8_t> out) {
+  ChannelValues values{};
+  for (size_t k = 0; k < impl.channels.size(); ++k) {
+    assert(scan.has(impl.channels[k].field));
+    values[k] = scan.column(impl.channels[k].field, m).data();
+  }
+  uint8_t* pixels = out.data() + impl.pixel_start(index, 0);
+  assert(impl.pixel_start(index, impl.format.pixels_per_column) <= out.size());
+  switch (impl.pixel_bytes) {
+    case 4: return encode_rows<4>(impl, values, pixels);
+    case 8: return encode_rows<8>(impl, values, pixels);
+    case 12: return encode_rows<12>(impl, values, pixels);
+    case 16: return encode_rows<16>(impl, values, pixels);
+    case 20: return encode_rows<20>(impl, values, pixels);
+    case 24: return encode_rows<24>(impl, values, pixels);
+    default: assert(false && "pixel size missing from the dispatch");
+  }
+}
+
 void encode_column(const packet_detail::FormatCodecs& impl, const PacketHeader& header, const Scan& scan, int index,
                    int m, std::span<uint8_t> out) {
   const auto column = out.subspan(impl.column_start(index));
   for (const auto& [field, codec] : impl.column) codec.set(column, column_value(impl, field, header, scan, m));
-  const int height = impl.format.pixels_per_column;
-  for (const auto& [field, codec] : impl.channels) {
-    const std::span<const uint32_t> values = scan.column(field, m);
-    for (int row = 0; row < height; ++row) {
-      codec.set(out.subspan(impl.pixel_start(index, row)), values[static_cast<size_t>(row)]);
-    }
-  }
+  encode_pixels(impl, scan, index, m, out);
 }
 
 void write_footer(std::span<uint8_t> out, FooterKind footer) {

@@ -11,7 +11,6 @@ namespace {
 using packet_detail::FieldCodec;
 
 constexpr size_t kMaxUdpPayload = 65535;
-constexpr int kMaxPixelsPerColumn = 128;
 constexpr int kMaxColumnsPerPacket = 64;
 constexpr int kMaxColumnsPerFrame = 65536;  // measurement_id is a u16
 
@@ -24,7 +23,7 @@ void validate_shape(const LidarDataFormat& f) {
     fail("udp_profile_lidar", "a supported profile", static_cast<int>(f.udp_profile_lidar));
   }
   if (f.pixels_per_column < 1 || f.pixels_per_column > kMaxPixelsPerColumn) {
-    fail("pixels_per_column", "1..128", f.pixels_per_column);
+    fail("pixels_per_column", "1.." + std::to_string(kMaxPixelsPerColumn), f.pixels_per_column);
   }
   if (f.columns_per_packet < 1 || f.columns_per_packet > kMaxColumnsPerPacket) {
     fail("columns_per_packet", "1..64", f.columns_per_packet);
@@ -71,7 +70,7 @@ void resolve_codecs(packet_detail::FormatCodecs& impl, const packet_detail::Prof
     impl.column.push_back({spec.field, FieldCodec::from(spec.bits, footer_start)});
   }
   for (const auto& spec : profile.channels) {
-    const FieldCodec codec = FieldCodec::from(spec.bits);
+    const FieldCodec codec = FieldCodec::in_word(spec.bits);
     impl.channels.push_back({spec.field, codec});
     impl.channel_by_field[static_cast<size_t>(spec.field)] = codec;
   }

@@ -12,6 +12,7 @@
 
 namespace lidartwin {
 
+inline constexpr int kMaxPixelsPerColumn = 128;
 // Encoder ticks per revolution of a LEGACY column header (protocol doc 4.2).
 inline constexpr uint64_t kEncoderTicksPerRevolution = 90112;
 
@@ -28,7 +29,7 @@ struct FormatCodecs {
   };
   struct ChannelCodec {
     ChannelField field;
-    FieldCodec codec;  // from the pixel start
+    FieldCodec codec;  // from the pixel start, offset a multiple of 8 (FieldCodec::in_word)
   };
 
   LidarDataFormat format;
