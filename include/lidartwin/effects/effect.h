@@ -17,10 +17,11 @@
 namespace lidartwin {
 
 struct EffectParameter {
-  std::string name;
+  std::string name;  // a key of the effect's JSON object, or a JSON pointer below it ("points_m/2/1")
   double value = 0.0;
   double lower = 0.0;  // bounds for fitting and validation
   double upper = 0.0;
+  bool fixed = false;  // structural (e.g. a knot's range): validated, but not for fitting
 };
 
 class Effect {
@@ -41,11 +42,19 @@ class Effect {
   virtual std::unique_ptr<Effect> with_parameters(std::span<const double> values) const = 0;
   nlohmann::json to_json() const;  // {"name": ..., <parameter>: value, ...}
 
+  // Effects that must come earlier in a chain, e.g. dropout reads the signal radiometry produces.
+  virtual std::vector<std::string_view> prerequisites() const { return {}; }
+
   void set_stream_id(uint32_t id) { stream_id_ = id; }
+  uint32_t stream_id() const { return stream_id_; }
 
  protected:
   RandomStream stream(const ColumnContext& context, uint32_t beam) const {
     return RandomStream(context.seed, PixelKey{context.frame, context.column, beam}, stream_id_);
+  }
+  // The same streams for a whole column, keyed once per column: streams(beam) == stream(context, beam).
+  ColumnStreams column_streams(const ColumnContext& context) const {
+    return ColumnStreams(context.seed, context.frame, context.column, stream_id_);
   }
 
  private:

@@ -1,0 +1,21 @@
+#pragma once
+// The factories of the effects built into lidartwin, one per src/effects/<effect>.cpp. The
+// registry lists them explicitly: self-registration from static initializers is dropped by the
+// linker when nothing else references the object file of a static library.
+#include <memory>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "lidartwin/effects/effect.h"
+
+namespace lidartwin::effects_detail {
+
+std::unique_ptr<Effect> make_radiometry(const nlohmann::json& params, std::string_view source);
+std::unique_ptr<Effect> make_range_noise_linear(const nlohmann::json& params, std::string_view source);
+std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params, std::string_view source);
+std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, std::string_view source);
+std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, std::string_view source);
+std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, std::string_view source);
+
+}  // namespace lidartwin::effects_detail

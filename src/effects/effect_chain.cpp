@@ -1,0 +1,120 @@
+// The ordered effect list of a profile: built from JSON through the registry, applied in order.
+#include "lidartwin/effects/effect_chain.h"
+
+#include <algorithm>
+#include <cassert>
+
+#include "effects/parameters.h"
+#include "effects/registry.h"
+#include "lidartwin/random/counter_rng.h"
+
+namespace lidartwin {
+namespace {
+
+using effects_detail::fail;
+using effects_detail::json_path;
+
+// Each effect draws from its own streams, keyed by its name and place in the chain (FNV-1a of
+// the name, mixed with the position), so adding or refitting one effect leaves the others' noise
+// unchanged wherever they still sit.
+uint32_t stream_id_for(std::string_view name, size_t position) {
+  uint64_t hash = 0xCBF29CE484222325ULL;
+  for (const char c : name) hash = (hash ^ static_cast<unsigned char>(c)) * 0x100000001B3ULL;
+  return static_cast<uint32_t>(rng_detail::mix64(hash + position) >> 32);
+}
+
+// A copy of `effect` carrying the stream id of `position` (effects are shared and immutable).
+std::shared_ptr<const Effect> placed(const Effect& effect, size_t position) {
+  std::vector<double> values;
+  for (const auto& parameter : effect.parameters()) values.push_back(parameter.value);
+  std::unique_ptr<Effect> copy = effect.with_parameters(values);
+  copy->set_stream_id(stream_id_for(effect.name(), position));
+  return copy;
+}
+
+std::string registered_list() {
+  std::string list;
+  for (const auto& name : registered_effects()) list += (list.empty() ? "" : ", ") + name;
+  return list;
+}
+
+std::unique_ptr<Effect> build_effect(const nlohmann::json& element, const std::string& where) {
+  if (!element.is_object()) fail(where, "must be an effect object {\"name\": ..., <parameters>}");
+  const auto name = element.find("name");
+  if (name == element.end()) fail(json_path(where, "name"), "missing; registered effects: " + registered_list());
+  if (!name->is_string()) fail(json_path(where, "name"), "must be a string, one of: " + registered_list());
+  const auto factory = effects_detail::find_effect(name->get<std::string>());
+  if (!factory) {
+    fail(json_path(where, "name"),
+         "unknown effect \"" + name->get<std::string>() + "\"; registered effects: " + registered_list());
+  }
+  return (*factory)(element, where);
+}
+
+// An effect's prerequisites must sit earlier in the chain.
+void check_order(const std::vector<std::shared_ptr<const Effect>>& effects, std::string_view source) {
+  for (size_t i = 0; i < effects.size(); ++i) {
+    for (const auto needed : effects[i]->prerequisites()) {
+      const bool before = std::any_of(effects.begin(), effects.begin() + static_cast<std::ptrdiff_t>(i),
+                                      [&](const auto& e) { return e->name() == needed; });
+      if (!before) {
+        fail(json_path(source, std::to_string(i)),
+             std::string(effects[i]->name()) + " needs " + std::string(needed) + " earlier in the chain");
+      }
+    }
+  }
+}
+
+}  // namespace
+
+EffectChain EffectChain::from_json(const nlohmann::json& document, std::string_view source) {
+  if (!document.is_array()) fail(source, "must be an array of effects [{\"name\": ...}, ...]");
+  EffectChain chain;
+  for (size_t i = 0; i < document.size(); ++i) {
+    std::unique_ptr<Effect> effect = build_effect(document[i], json_path(source, std::to_string(i)));
+    effect->set_stream_id(stream_id_for(effect->name(), i));
+    chain.effects_.push_back(std::move(effect));
+  }
+  check_order(chain.effects_, source);
+  return chain;
+}
+
+nlohmann::json EffectChain::to_json() const {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& effect : effects_) out.push_back(effect->to_json());
+  return out;
+}
+
+void EffectChain::simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
+                           std::span<Measurement> out) const {
+  assert(ideal.size() == out.size());
+  for (size_t i = 0; i < ideal.size(); ++i) {
+    out[i] = Measurement{};
+    out[i].range_m = ideal[i].hit() ? ideal[i].range_m : 0.0f;
+  }
+  for (const auto& effect : effects_) effect->simulate(ideal, context, out);
+}
+
+Prediction EffectChain::predict(const IdealReturn& ideal, const ColumnContext& context) const {
+  Prediction prediction;
+  prediction.p_detect = ideal.hit() ? 1.0 : 0.0;
+  for (const auto& effect : effects_) effect->predict(ideal, context, prediction);
+  return prediction;
+}
+
+EffectChain EffectChain::with_effect(std::shared_ptr<const Effect> effect) const {
+  EffectChain chain = *this;
+  chain.effects_.push_back(placed(*effect, chain.effects_.size()));
+  check_order(chain.effects_, "effect chain");
+  return chain;
+}
+
+EffectChain EffectChain::replacing(size_t index, std::shared_ptr<const Effect> effect) const {
+  assert(index < effects_.size());
+  EffectChain chain = *this;
+  chain.effects_.at(index) = placed(*effect, index);
+  check_order(chain.effects_, "effect chain");
+  return chain;
+}
+
+}  // namespace lidartwin

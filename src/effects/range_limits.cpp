@@ -1,0 +1,78 @@
+// E5 (its range part) and E16: a return whose measured range falls outside [min_m, max_m], or
+// beyond what the wire format can represent (context.max_wire_range_m, E9), is reported as no
+// return: range 0, signal 0, reflectivity 0 (an Ouster sensor cannot tell these apart, [S24]).
+// Place it after the noise effects and before quantization: the firmware compares the noisy range.
+#include <algorithm>
+#include <cmath>
+
+#include "effects/builtin_effects.h"
+#include "effects/parameters.h"
+
+namespace lidartwin::effects_detail {
+namespace {
+
+struct RangeLimitsParameters {
+  double min_m = 0.0;  // min_range_threshold_cm on current firmware: 0, 0.3 or 0.5 m ([S5])
+  double max_m = 0.0;
+};
+
+// P(X <= x) for a standard normal X.
+double normal_cdf(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+
+class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters> {
+ public:
+  using P = RangeLimitsParameters;
+  static constexpr std::string_view kName = "range_limits";
+  static constexpr std::array<ParameterSpec<P>, 2> kSpecs{{
+      {"min_m", &P::min_m, {0.0, 1000.0}, true},
+      {"max_m", &P::max_m, {0.0, 10000.0}, true},
+  }};
+
+  explicit RangeLimits(const P& p) : TabledEffect(p) {}
+
+  static void check(const P& p, std::string_view source) {
+    if (!(p.min_m < p.max_m)) {
+      fail(json_path(source, "max_m"),
+           "must be greater than min_m (" + format_number(p.min_m) + "), got " + format_number(p.max_m));
+    }
+  }
+
+  void simulate(std::span<const IdealReturn>, const ColumnContext& context,
+                std::span<Measurement> measured) const override {
+    const float lower = static_cast<float>(params().min_m);
+    const float upper = std::min(static_cast<float>(params().max_m), context.max_wire_range_m);
+    for (Measurement& m : measured) {
+      if (m.range_m == 0.0f || (m.range_m >= lower && m.range_m <= upper)) continue;
+      m.range_m = 0.0f;
+      m.signal_photons = 0.0f;
+      m.reflectivity = 0.0f;
+    }
+  }
+
+  // P(min <= r + bias + noise <= max) under the noise predicted so far; the detected range is
+  // that Gaussian truncated to the window, which the prediction records.
+  void predict(const IdealReturn& ideal, const ColumnContext& context, Prediction& prediction) const override {
+    const double lower = static_cast<double>(static_cast<float>(params().min_m));
+    const double upper =
+        static_cast<double>(std::min(static_cast<float>(params().max_m), context.max_wire_range_m));
+    const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
+    double inside = 0.0;
+    if (prediction.variance_m2 > 0.0) {
+      const double s = std::sqrt(prediction.variance_m2);
+      inside = normal_cdf((upper - mean) / s) - normal_cdf((lower - mean) / s);
+    } else {
+      inside = (mean >= lower && mean <= upper) ? 1.0 : 0.0;
+    }
+    prediction.p_detect *= inside;
+    prediction.window_min_m = std::max(prediction.window_min_m, lower);
+    prediction.window_max_m = std::min(prediction.window_max_m, upper);
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, std::string_view source) {
+  return RangeLimits::create(params, source);
+}
+
+}  // namespace lidartwin::effects_detail
