@@ -1,0 +1,177 @@
+// cpp-httplib wiring: every request goes through one catch-all handler per method into
+// RequestHandler, which does the routing (so absolute-form paths, 404 vs 405 and the error bodies
+// are ours, not httplib's). This file only moves bytes.
+#include "lidartwin/http_api/http_server.h"
+
+#include <httplib.h>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <cerrno>
+#include <thread>
+
+#include "http_api/api_util.h"
+#include "http_api/bind_probe.h"
+#include "lidartwin/http_api/request_handler.h"
+
+namespace lidartwin {
+namespace {
+
+ApiRequest to_api_request(const httplib::Request& request, std::string body) {
+  ApiRequest api;
+  api.method = request.method;
+  api.path = request.path;
+  api.query.insert(request.params.begin(), request.params.end());
+  api.body = std::move(body);
+  api.peer_ip = request.remote_addr;
+  api.local_ip = request.local_addr;
+  return api;
+}
+
+void write_response(const ApiResponse& api, httplib::Response& response) {
+  response.status = api.status;
+  for (const auto& [name, value] : api.headers) response.set_header(name.c_str(), value);
+  response.set_content(api.body, "application/json");
+}
+
+// Reads the body, keeping at most `limit` bytes. A longer body is read to its end and dropped, so
+// the connection stays usable; `too_large` tells. (httplib's own limit covers Content-Length
+// bodies only, not chunked ones.)
+bool read_body(const httplib::ContentReader& reader, std::size_t limit, std::string& body,
+               bool& too_large) {
+  return reader([&](const char* data, std::size_t size) {
+    if (too_large || body.size() + size > limit) {
+      too_large = true;
+      body.clear();
+    } else {
+      body.append(data, size);
+    }
+    return true;
+  });
+}
+
+std::string too_large_message(std::size_t limit) {
+  return "request body too large: the limit is " + std::to_string(limit) + " bytes";
+}
+
+// Bodies for the errors httplib answers itself (413, a malformed request line, ...). Our own
+// error responses already have one.
+httplib::Server::HandlerResponse fill_error_body(httplib::Response& response, std::size_t limit) {
+  if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+  std::string message = "HTTP error " + std::to_string(response.status);
+  if (response.status == 413) message = too_large_message(limit);
+  if (response.status == 414) message = "request line too long";
+  if (response.status == 400) message = "malformed HTTP request";
+  write_response(error_response(response.status, message), response);
+  return httplib::Server::HandlerResponse::Handled;
+}
+
+}  // namespace
+
+struct HttpServer::Impl {
+  Impl(Sensor& sensor, HttpServerOptions server_options)
+      : options(std::move(server_options)), handler(sensor) {}
+
+  void configure();
+  void handle(const httplib::Request& request, httplib::Response& response, std::string body);
+  void handle_with_body(const httplib::Request& request, httplib::Response& response,
+                        const httplib::ContentReader& reader);
+
+  HttpServerOptions options;
+  RequestHandler handler;
+  httplib::Server server;
+  std::thread thread;
+  std::atomic<bool> listen_returned{false};
+  int port = -1;
+};
+
+void HttpServer::Impl::handle(const httplib::Request& request, httplib::Response& response,
+                              std::string body) {
+  write_response(handler.handle(to_api_request(request, std::move(body))), response);
+}
+
+void HttpServer::Impl::handle_with_body(const httplib::Request& request,
+                                        httplib::Response& response,
+                                        const httplib::ContentReader& reader) {
+  std::string body;
+  bool too_large = false;
+  const bool read = read_body(reader, options.max_body_bytes, body, too_large);
+  // httplib sets 413 itself when Content-Length exceeds the limit (it skips that body).
+  if (too_large || response.status == 413) {
+    write_response(error_response(413, too_large_message(options.max_body_bytes)), response);
+  } else if (!read) {
+    write_response(error_response(400, "cannot read the request body"), response);
+  } else {
+    handle(request, response, std::move(body));
+  }
+}
+
+void HttpServer::Impl::configure() {
+  const std::string any = ".*";
+  auto plain = [this](const httplib::Request& rq, httplib::Response& rs) { handle(rq, rs, rq.body); };
+  auto with_body = [this](const httplib::Request& rq, httplib::Response& rs,
+                          const httplib::ContentReader& reader) { handle_with_body(rq, rs, reader); };
+  server.Get(any, plain).Delete(any, plain).Options(any, plain).Patch(any, plain);
+  server.Post(any, with_body).Put(any, with_body);
+  server.set_payload_max_length(options.max_body_bytes);
+  server.set_read_timeout(options.read_timeout);
+  server.set_write_timeout(options.write_timeout);
+  server.set_keep_alive_timeout(options.keep_alive_timeout.count());
+  server.set_keep_alive_max_count(options.keep_alive_max_requests);
+  const std::size_t threads = options.threads;
+  server.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+  const std::size_t limit = options.max_body_bytes;
+  server.set_error_handler(httplib::Server::HandlerWithResponse(
+      [limit](const httplib::Request&, httplib::Response& response) {
+        return fill_error_body(response, limit);
+      }));
+  server.set_exception_handler([](const httplib::Request&, httplib::Response& response,
+                                  std::exception_ptr) {
+    write_response(error_response(500, "internal error"), response);
+  });
+  server.set_logger([](const httplib::Request& request, const httplib::Response& response) {
+    spdlog::debug("HTTP {} {} {} -> {}", request.remote_addr, request.method, request.target,
+                  response.status);
+  });
+}
+
+HttpServer::HttpServer(Sensor& sensor, HttpServerOptions options)
+    : impl_(std::make_unique<Impl>(sensor, std::move(options))) {
+  impl_->configure();
+}
+
+HttpServer::~HttpServer() { stop(); }
+
+void HttpServer::start() {
+  auto& impl = *impl_;
+  if (impl.thread.joinable()) return;
+  const auto& address = impl.options.address;
+  const int requested = impl.options.port;
+  impl.port = requested == 0 ? impl.server.bind_to_any_port(address)
+                             : (impl.server.bind_to_port(address, requested) ? requested : -1);
+  if (impl.port < 0) {
+    const int error_number = bind_errno(address, requested);
+    throw BindError(describe_bind_error(address, requested, error_number), error_number);
+  }
+  impl.thread = std::thread([&impl] {
+    impl.server.listen_after_bind();
+    impl.listen_returned = true;
+  });
+  // httplib's stop() does nothing until the accept loop runs (it checks is_running()): wait.
+  while (!impl.server.is_running() && !impl.listen_returned) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  spdlog::info("HTTP API on http://{}:{}/api/v1/", address, impl.port);
+}
+
+void HttpServer::stop() {
+  if (!impl_->thread.joinable()) return;
+  impl_->server.stop();
+  impl_->thread.join();
+}
+
+int HttpServer::port() const { return impl_->port; }
+
+const std::string& HttpServer::address() const { return impl_->options.address; }
+
+}  // namespace lidartwin

@@ -1,0 +1,44 @@
+// Metadata and firmware endpoints (protocol doc 2.3, 2.5, 3.1).
+#include "http_api/api_util.h"
+#include "http_api/routes.h"
+
+namespace lidartwin {
+namespace {
+
+// Polled every second while INITIALIZING and used for FW detection (protocol doc 2.2, 2.4 (b)).
+ApiResponse get_sensor_info(Sensor& sensor, const ApiRequest&) {
+  return json_response(sensor.sensor_info());
+}
+
+// All 7 sections + imu_data_format (protocol doc 1.7, 3.1).
+ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) {
+  return json_response(sensor.metadata());
+}
+
+// Any section by name, as the FW and the SDK's replay server do (protocol doc 2.3).
+ApiResponse get_metadata_section(Sensor& sensor, const ApiRequest& request) {
+  const std::string name = route_tail(request, "sensor/metadata");
+  if (auto section = sensor.metadata_section(name)) return json_response(*section);
+  const auto document = sensor.metadata();
+  std::string known;
+  for (const auto& [key, value] : document.items()) known += (known.empty() ? "" : ", ") + key;
+  throw HttpError(404, "no metadata section \"" + name + "\"; sections: " + known);
+}
+
+// SDK <= 0.15 detects the FW from this (protocol doc 2.2).
+ApiResponse get_firmware(Sensor& sensor, const ApiRequest&) {
+  return json_response({{"fw", sensor.identity().image_rev}});
+}
+
+}  // namespace
+
+std::vector<Route> metadata_routes() {
+  return {
+      {"GET", "sensor/metadata/sensor_info", false, get_sensor_info},
+      {"GET", "sensor/metadata", false, get_metadata},
+      {"GET", "sensor/metadata", true, get_metadata_section},
+      {"GET", "system/firmware", false, get_firmware},
+  };
+}
+
+}  // namespace lidartwin
