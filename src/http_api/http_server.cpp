@@ -5,9 +5,9 @@
 
 #include <httplib.h>
 #include <spdlog/spdlog.h>
+#include <sys/socket.h>
 
 #include <atomic>
-#include <cerrno>
 #include <thread>
 
 #include "http_api/api_util.h"
@@ -73,6 +73,7 @@ struct HttpServer::Impl {
       : options(std::move(server_options)), handler(sensor) {}
 
   void configure();
+  void configure_connections();
   void handle(const httplib::Request& request, httplib::Response& response, std::string body);
   void handle_with_body(const httplib::Request& request, httplib::Response& response,
                         const httplib::ContentReader& reader);
@@ -107,19 +108,14 @@ void HttpServer::Impl::handle_with_body(const httplib::Request& request,
 }
 
 void HttpServer::Impl::configure() {
+  // Catch-all patterns: RequestHandler routes, so 404/405 and absolute-form paths are ours.
   const std::string any = ".*";
   auto plain = [this](const httplib::Request& rq, httplib::Response& rs) { handle(rq, rs, rq.body); };
   auto with_body = [this](const httplib::Request& rq, httplib::Response& rs,
                           const httplib::ContentReader& reader) { handle_with_body(rq, rs, reader); };
   server.Get(any, plain).Delete(any, plain).Options(any, plain).Patch(any, plain);
   server.Post(any, with_body).Put(any, with_body);
-  server.set_payload_max_length(options.max_body_bytes);
-  server.set_read_timeout(options.read_timeout);
-  server.set_write_timeout(options.write_timeout);
-  server.set_keep_alive_timeout(options.keep_alive_timeout.count());
-  server.set_keep_alive_max_count(options.keep_alive_max_requests);
-  const std::size_t threads = options.threads;
-  server.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+
   const std::size_t limit = options.max_body_bytes;
   server.set_error_handler(httplib::Server::HandlerWithResponse(
       [limit](const httplib::Request&, httplib::Response& response) {
@@ -133,6 +129,26 @@ void HttpServer::Impl::configure() {
     spdlog::debug("HTTP {} {} {} -> {}", request.remote_addr, request.method, request.target,
                   response.status);
   });
+  configure_connections();
+}
+
+void HttpServer::Impl::configure_connections() {
+  // httplib's default sets SO_REUSEPORT, which lets a second daemon bind the same port and take
+  // half of the connections; SO_REUSEADDR alone allows a quick restart and refuses a duplicate.
+  server.set_socket_options([](int sock) {
+    const int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+  // Headers and body go out in separate writes: without TCP_NODELAY the body waits for the
+  // client's delayed ACK (40 ms per response on Linux).
+  server.set_tcp_nodelay(true);
+  server.set_payload_max_length(options.max_body_bytes);
+  server.set_read_timeout(options.read_timeout);
+  server.set_write_timeout(options.write_timeout);
+  server.set_keep_alive_timeout(options.keep_alive_timeout.count());
+  server.set_keep_alive_max_count(options.keep_alive_max_requests);
+  const std::size_t threads = options.threads;
+  server.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
 }
 
 HttpServer::HttpServer(Sensor& sensor, HttpServerOptions options)

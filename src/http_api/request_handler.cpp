@@ -54,7 +54,7 @@ ApiResponse dispatch(Sensor& sensor, const ApiRequest& request) {
     throw HttpError(404, "unknown endpoint " + path + ": the sensor API is below /api/v1/");
   }
   // HEAD is GET without the body (cpp-httplib drops the body).
-  const std::string_view method = request.method == "HEAD" ? "GET" : request.method;
+  const std::string method = request.method == "HEAD" ? "GET" : request.method;
   std::vector<std::string_view> allowed;
   for (const Route& route : all_routes()) {
     if (!matches(route, *resource)) continue;
