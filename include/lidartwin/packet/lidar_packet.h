@@ -42,8 +42,11 @@ class PacketFormat {
   uint32_t channel_step(ChannelField field) const;
 
   // Writes the packet carrying columns [first_column, first_column + columns_per_packet) of scan
-  // into out (size lidar_packet_size()). Header fields from header; legacy encoder counts derive
-  // from measurement ids; the CRC is computed when footer == kCrc64.
+  // into out (size lidar_packet_size()); no allocation. Header fields come from header, truncated
+  // to their widths (frame_id wraps at 2^16, or 2^32 with the FUSA header); LEGACY encoder counts
+  // derive from measurement ids (m * 90112 / W); the CRC is computed when footer == kCrc64.
+  // Channel values wider than their field are a caller bug (asserted); RNG15 ranges are in mm and
+  // lose their low 3 bits. The FUSA profile always uses the FUSA header (protocol doc 4.3).
   void encode(const PacketHeader& header, const Scan& scan, int first_column, std::span<uint8_t> out,
               FooterKind footer = FooterKind::kCrc64) const;
 
