@@ -36,8 +36,8 @@ json sample_section(const json& metadata, const char* nested, const char* key) {
 }
 
 TEST(Profile, EveryShippedProfileLoads) {
-  const std::vector<std::string> expected{"os0-128", "os0-32",  "os0-32-paper", "os0-64", "os1-128", "os1-32",
-                                          "os1-32-paper", "os1-64", "os2-128", "os2-32", "os2-64"};
+  const std::vector<std::string> expected{"os0-128",      "os0-32", "os0-32-paper", "os0-64", "os1-128", "os1-32",
+                                          "os1-32-paper", "os1-64", "os2-128",      "os2-32", "os2-64"};
   EXPECT_EQ(available_profiles(), expected);
   for (const auto& name : expected) {
     const SensorProfile profile = load_profile(name);
@@ -49,10 +49,10 @@ TEST(Profile, EveryShippedProfileLoads) {
 
 TEST(Profile, BeamCountsAndProductLines) {
   const std::map<std::string, std::pair<int, std::string>> expected{
-      {"os0-32", {32, "OS-0-32-U1"}},       {"os0-64", {64, "OS-0-64"}},  {"os0-128", {128, "OS-0-128"}},
-      {"os1-32", {32, "OS-1-32-G"}},        {"os1-64", {64, "OS-1-64"}},  {"os1-128", {128, "OS-1-128"}},
-      {"os2-32", {32, "OS-2-32-U0"}},       {"os2-64", {64, "OS-2-64"}},  {"os2-128", {128, "OS-2-128"}},
-      {"os0-32-paper", {32, "OS-0-32"}},    {"os1-32-paper", {32, "OS-1-32"}}};
+      {"os0-32", {32, "OS-0-32-U1"}},    {"os0-64", {64, "OS-0-64"}},      {"os0-128", {128, "OS-0-128"}},
+      {"os1-32", {32, "OS-1-32-G"}},     {"os1-64", {64, "OS-1-64"}},      {"os1-128", {128, "OS-1-128"}},
+      {"os2-32", {32, "OS-2-32-U0"}},    {"os2-64", {64, "OS-2-64"}},      {"os2-128", {128, "OS-2-128"}},
+      {"os0-32-paper", {32, "OS-0-32"}}, {"os1-32-paper", {32, "OS-1-32"}}};
   for (const auto& [name, count_and_line] : expected) {
     const SensorProfile profile = load_profile(name);
     EXPECT_EQ(profile.beams.pixels_per_column(), count_and_line.first) << name;
@@ -69,21 +69,21 @@ struct SampleSource {
 };
 
 TEST(Profile, RealMetadataProfilesEqualTheirSample) {
-  const std::map<std::string, SampleSource> sources{
-      {"os0-32", {"OS-0-32-U1_v2.2.0_1024x10.json", 0, 1}},
-      {"os0-64", {"OS-0-128-U1_v2.3.0_1024x10.json", 0, 2}},
-      {"os0-128", {"OS-0-128-U1_v2.3.0_1024x10.json", 0, 1}},
-      {"os1-32", {"OS-1-32-G_v2.1.1_1024x10.json", 0, 1}},
-      {"os1-64", {"metadata/2_1_2_os1-991913000010-64.json", 0, 1}},
-      {"os1-128", {"OS-1-128_v2.3.0_1024x10.json", 0, 1}},
-      {"os2-32", {"OS-2-32-U0_v2.0.0_1024x10.json", 0, 1}},
-      {"os2-64", {"OS-2-128-U1_v2.3.0_1024x10.json", 0, 2}},
-      {"os2-128", {"OS-2-128-U1_v2.3.0_1024x10.json", 0, 1}}};
+  const std::map<std::string, SampleSource> sources{{"os0-32", {"OS-0-32-U1_v2.2.0_1024x10.json", 0, 1}},
+                                                    {"os0-64", {"OS-0-128-U1_v2.3.0_1024x10.json", 0, 2}},
+                                                    {"os0-128", {"OS-0-128-U1_v2.3.0_1024x10.json", 0, 1}},
+                                                    {"os1-32", {"OS-1-32-G_v2.1.1_1024x10.json", 0, 1}},
+                                                    {"os1-64", {"metadata/2_1_2_os1-991913000010-64.json", 0, 1}},
+                                                    {"os1-128", {"OS-1-128_v2.3.0_1024x10.json", 0, 1}},
+                                                    {"os2-32", {"OS-2-32-U0_v2.0.0_1024x10.json", 0, 1}},
+                                                    {"os2-64", {"OS-2-128-U1_v2.3.0_1024x10.json", 0, 2}},
+                                                    {"os2-128", {"OS-2-128-U1_v2.3.0_1024x10.json", 0, 1}}};
   for (const auto& [name, source] : sources) {
     SCOPED_TRACE(name);
     const SensorProfile profile = load_profile(name);
     const json metadata = read_json(kSamples / source.file);
-    const auto altitude = sample_section(metadata, "beam_intrinsics", "beam_altitude_angles").get<std::vector<double>>();
+    const auto altitude =
+        sample_section(metadata, "beam_intrinsics", "beam_altitude_angles").get<std::vector<double>>();
     const auto azimuth = sample_section(metadata, "beam_intrinsics", "beam_azimuth_angles").get<std::vector<double>>();
     ASSERT_EQ(profile.beams.altitude_deg.size() * source.row_step, altitude.size());
     for (size_t row = 0; row < profile.beams.altitude_deg.size(); ++row) {
@@ -118,7 +118,9 @@ TEST(Profile, PaperProfilesReproduceSectionIII) {
     EXPECT_EQ(profile.max_range_m, e.max_range_m);
     EXPECT_EQ(profile.lidar_modes, (std::vector<std::string>{"512x10", "512x20"}));
     const json noise = profile.effects.at(1);
-    EXPECT_EQ(noise, (json{{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", e.sigma_max_m},
+    EXPECT_EQ(noise, (json{{"name", "range_noise_linear"},
+                           {"sigma0_m", 0.01},
+                           {"sigma_max_m", e.sigma_max_m},
                            {"range_max_m", e.max_range_m}}));
   }
 }
@@ -236,8 +238,9 @@ TEST_F(BadProfile, WrongType) {
 
 TEST_F(BadProfile, ArraysOfDifferentLengths) {
   good_["beam_intrinsics"]["beam_azimuth_angles"].erase(0);
-  EXPECT_EQ(error_for(good_), path() + ": /beam_intrinsics/beam_azimuth_angles: must have as many entries as "
-                                       "beam_altitude_angles (64), got 63");
+  EXPECT_EQ(error_for(good_), path() +
+                                  ": /beam_intrinsics/beam_azimuth_angles: must have as many entries as "
+                                  "beam_altitude_angles (64), got 63");
 }
 
 TEST_F(BadProfile, BeamCountDisagreesWithProductLine) {

@@ -1,13 +1,17 @@
 // Scene: hand-made glTF files (written by tests/support/gltf_builder.h) are cast with rtcIntersect1
 // at known geometry, so the glTF Y-up → world Z-up conversion, node transforms, index types,
 // strides, strips/fans and container variants are checked against hand-computed hits.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
 
-#include <embree3/rtcore.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -15,39 +19,16 @@
 #include "lidartwin/error.h"
 #include "lidartwin/scene/scene.h"
 #include "support/gltf_builder.h"
+#include "support/scene_rays.h"
 
 namespace lidartwin {
 namespace {
 
 using nlohmann::json;
+using test::cast;
 using test::GltfBuilder;
 using ::testing::HasSubstr;
 namespace fs = std::filesystem;
-
-struct Hit {
-  float distance;
-  unsigned geom_id;
-  unsigned prim_id;
-  Eigen::Vector3f normal;  // Embree's geometric normal, world frame
-};
-
-std::optional<Hit> cast(const Scene& scene, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  RTCRayHit rh{};
-  rh.ray.org_x = static_cast<float>(origin.x());
-  rh.ray.org_y = static_cast<float>(origin.y());
-  rh.ray.org_z = static_cast<float>(origin.z());
-  rh.ray.dir_x = static_cast<float>(direction.x());
-  rh.ray.dir_y = static_cast<float>(direction.y());
-  rh.ray.dir_z = static_cast<float>(direction.z());
-  rh.ray.tfar = std::numeric_limits<float>::infinity();
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(scene.embree_scene(), &context, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-  return Hit{rh.ray.tfar, rh.hit.geomID, rh.hit.primID, Eigen::Vector3f(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z)};
-}
 
 // A square of side 2·half, centred at c (glTF frame), spanned by unit axes u and v.
 std::vector<float> square(const Eigen::Vector3f& c, const Eigen::Vector3f& u, const Eigen::Vector3f& v,
@@ -90,10 +71,11 @@ GltfBuilder wall_and_floor() {
   const int wall = b.add_positions(square({0, 0, -10}, Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitY()));
   const int floor = b.add_positions(square({0, -2, 0}, Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitZ(), 5.0f));
   const int indices = b.add_indices(kQuad);
-  b.add_mesh("wall", json::array({{{"attributes", {{"POSITION", wall}}}, {"indices", indices},
-                                   {"material", wall_material}}}));
-  b.add_mesh("floor", json::array({{{"attributes", {{"POSITION", floor}}}, {"indices", indices},
-                                    {"material", floor_material}}}));
+  b.add_mesh("wall",
+             json::array({{{"attributes", {{"POSITION", wall}}}, {"indices", indices}, {"material", wall_material}}}));
+  b.add_mesh(
+      "floor",
+      json::array({{{"attributes", {{"POSITION", floor}}}, {"indices", indices}, {"material", floor_material}}}));
   b.add_node({{"mesh", 0}});
   b.add_node({{"mesh", 1}});
   b.set_roots({0, 1});
@@ -234,8 +216,8 @@ TEST_F(SceneFiles, ErrorsNameTheFileAndTheCulprit) {
               HasSubstr((dir_ / "garbage.gltf").string() + ": not a readable glTF 2.0 file: "));
 
   GltfBuilder points;
-  points.add_mesh("dots", json::array({{{"attributes", {{"POSITION", points.add_positions({0, 0, 0, 1, 0, 0})}}},
-                                        {"mode", 0}}}));
+  points.add_mesh(
+      "dots", json::array({{{"attributes", {{"POSITION", points.add_positions({0, 0, 0, 1, 0, 0})}}}, {"mode", 0}}}));
   points.add_node({{"mesh", 0}});
   points.set_roots({0});
   points.write_embedded(dir_ / "points.gltf");
@@ -268,11 +250,116 @@ TEST_F(SceneFiles, OutOfRangeIndexAndBadExtras) {
   json doc = json::parse(std::ifstream(dir_ / "index.gltf"));
   doc["materials"][0]["extras"]["reflectivity"] = 0.5;
   std::ofstream(dir_ / "index.gltf") << doc.dump();
-  EXPECT_THAT(error_loading(dir_ / "index.gltf"),
-              HasSubstr("index.gltf: mesh 'quad' (#0) primitive 0: index 7 (element 5) is out of range for 4 vertices"));
+  EXPECT_THAT(
+      error_loading(dir_ / "index.gltf"),
+      HasSubstr("index.gltf: mesh 'quad' (#0) primitive 0: index 7 (element 5) is out of range for 4 vertices"));
   doc["accessors"][0]["count"] = 400;  // positions now run past their buffer
   std::ofstream(dir_ / "index.gltf") << doc.dump();
   EXPECT_THAT(error_loading(dir_ / "index.gltf"), HasSubstr("index.gltf: mesh 'quad' (#0) primitive 0: "));
+}
+
+// The committed scenes (tools/scenegen), checked from the files alone.
+const fs::path kScenes = fs::path(LIDARTWIN_SOURCE_DIR) / "scenes";
+
+struct TumRow {
+  double time_s;
+  Eigen::Vector3d position;
+  Eigen::Quaterniond rotation;
+};
+
+std::vector<TumRow> read_tum(const fs::path& path) {
+  std::ifstream in(path);
+  EXPECT_TRUE(in) << path;
+  std::vector<TumRow> rows;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double t, x, y, z, qx, qy, qz, qw;
+    fields >> t >> x >> y >> z >> qx >> qy >> qz >> qw;
+    rows.push_back({t, {x, y, z}, Eigen::Quaterniond(qw, qx, qy, qz)});
+  }
+  return rows;
+}
+
+TEST(ShippedScenes, PlantIsAFlatSiteOfTheReferenceSize) {
+  const Scene plant = Scene::load(kScenes / "plant.glb");
+  // DESIGN.md "Speed": the reference scene has about 234k triangles.
+  EXPECT_GT(plant.triangle_count(), 220000u);
+  EXPECT_LT(plant.triangle_count(), 250000u);
+  for (const auto& [x, y] : {std::pair{0.0, -100.0}, {-170.0, 0.0}, {150.0, 105.0}, {-100.0, -120.0}}) {
+    const auto ground = cast(plant, {x, y, 100.0}, {0, 0, -1});
+    ASSERT_TRUE(ground) << x << ", " << y;
+    EXPECT_NEAR(ground->distance, 100.0f, 0.05f) << x << ", " << y;
+  }
+  int retro = 0;
+  for (unsigned g = 0; g < plant.geometry_count(); ++g) {
+    const Material& m = plant.material(g);
+    EXPECT_TRUE(m.reflectivity >= 0.0f && m.reflectivity <= 1.0f) << m.name;
+    retro += m.retroreflective ? 1 : 0;
+  }
+  EXPECT_GE(retro, 1);
+}
+
+TEST(ShippedScenes, InspectionFlightIsAClosedDroneLapClearOfThePlant) {
+  const std::vector<TumRow> flight = read_tum(kScenes / "plant_inspection.tum");
+  ASSERT_GT(flight.size(), 100u);
+  const double duration = flight.back().time_s - flight.front().time_s;
+  EXPECT_GT(duration, 120.0);
+  EXPECT_LT(duration, 600.0);
+  EXPECT_LT((flight.back().position - flight.front().position).norm(), 1e-3);
+  EXPECT_LT(flight.back().rotation.angularDistance(flight.front().rotation), 1e-6);
+  const Scene plant = Scene::load(kScenes / "plant.glb");
+  for (size_t i = 1; i < flight.size(); ++i) {
+    const double dt = flight[i].time_s - flight[i - 1].time_s;
+    const Eigen::Vector3d velocity = (flight[i].position - flight[i - 1].position) / dt;
+    ASSERT_LE(dt, 0.1 + 1e-9) << i;
+    ASSERT_NEAR(velocity.norm(), 4.0, 1.0) << i;
+    ASSERT_GE(flight[i].position.z(), 5.0) << i;
+    ASSERT_LE(flight[i].position.z(), 20.0) << i;
+    // Looking forward: the sensor's x axis follows the motion, its z axis stays near vertical.
+    const Eigen::Matrix3d world_from_sensor = flight[i].rotation.toRotationMatrix();
+    ASSERT_GT(world_from_sensor.col(0).dot(velocity.normalized()), std::cos(10.0 * M_PI / 180.0)) << i;
+    ASSERT_GT(world_from_sensor(2, 2), std::cos(10.0 * M_PI / 180.0)) << i;
+    if (i % 10 != 0) continue;
+    for (int axis = 0; axis < 6; ++axis) {
+      const Eigen::Vector3d d = (axis < 3 ? 1.0 : -1.0) * Eigen::Vector3d::Unit(axis % 3);
+      ASSERT_FALSE(cast(plant, flight[i].position, d, 3.0f)) << "within 3 m of the plant at pose " << i;
+    }
+  }
+}
+
+TEST(ShippedScenes, CalibrationHallShowsEveryTargetFromTheStaticPose) {
+  const TumRow pose = read_tum(kScenes / "calibration_hall_static.tum").at(0);
+  const Scene hall = Scene::load(kScenes / "calibration_hall.glb");
+  EXPECT_GE(hall.bounds().sizes().x(), 120.0);
+  std::vector<double> ranges, reflectivities, incidences;
+  int retro = 0;
+  for (unsigned g = 0; g < hall.geometry_count(); ++g) {
+    const Material& m = hall.material(g);
+    double range, az, el, rho, inc;
+    if (std::sscanf(m.name.c_str(), "target_r%lf_az%lf_el%lf_rho%lf_inc%lf", &range, &az, &el, &rho, &inc) != 5)
+      continue;
+    SCOPED_TRACE(m.name);
+    const double a = az * M_PI / 180.0, e = el * M_PI / 180.0;
+    const Eigen::Vector3d sensor_direction(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e));
+    const auto hit = cast(hall, pose.position, pose.rotation * sensor_direction);
+    ASSERT_TRUE(hit);
+    EXPECT_EQ(hit->geom_id, g) << "hidden by " << hall.material(hit->geom_id).name;
+    EXPECT_NEAR(hit->distance, range, 1e-3 * range);
+    EXPECT_FLOAT_EQ(m.reflectivity, static_cast<float>(rho));
+    EXPECT_LT(std::abs(el), 15.0);  // inside the ±22.5° of an OS1 with room for the board
+    ranges.push_back(range);
+    reflectivities.push_back(rho);
+    incidences.push_back(inc);
+    retro += m.retroreflective ? 1 : 0;
+  }
+  ASSERT_FALSE(ranges.empty());
+  EXPECT_LE(*std::min_element(ranges.begin(), ranges.end()), 1.0);
+  EXPECT_GE(*std::max_element(ranges.begin(), ranges.end()), 100.0);
+  EXPECT_LE(*std::min_element(reflectivities.begin(), reflectivities.end()), 0.05 + 1e-9);
+  EXPECT_GE(*std::max_element(reflectivities.begin(), reflectivities.end()), 0.9 - 1e-9);
+  EXPECT_GE(*std::max_element(incidences.begin(), incidences.end()), 75.0);
+  EXPECT_GE(retro, 1);
 }
 
 }  // namespace

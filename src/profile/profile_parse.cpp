@@ -62,23 +62,23 @@ BeamIntrinsics read_beams(const json& value, const Location& at, std::string_vie
                              "beam_to_lidar_transform", "lidar_to_sensor_transform", "imu_to_sensor_transform"});
   BeamIntrinsics beams;
   const std::string angles = "an array of 16, 32, 64 or 128 angles in degrees";
-  beams.altitude_deg = read_numbers(reader.at("beam_altitude_angles", angles), at.child("beam_altitude_angles"),
-                                    kAltitudeDeg);
-  beams.azimuth_deg = read_numbers(reader.at("beam_azimuth_angles", angles), at.child("beam_azimuth_angles"),
-                                   kAzimuthDeg);
+  beams.altitude_deg =
+      read_numbers(reader.at("beam_altitude_angles", angles), at.child("beam_altitude_angles"), kAltitudeDeg);
+  beams.azimuth_deg =
+      read_numbers(reader.at("beam_azimuth_angles", angles), at.child("beam_azimuth_angles"), kAzimuthDeg);
   const size_t rows = beams.altitude_deg.size();
   if (rows != 16 && rows != 32 && rows != 64 && rows != 128) {
     at.child("beam_altitude_angles").fail("must have 16, 32, 64 or 128 beams, got " + std::to_string(rows));
   }
   if (beams.azimuth_deg.size() != rows) {
-    at.child("beam_azimuth_angles").fail("must have as many entries as beam_altitude_angles (" +
-                                         std::to_string(rows) + "), got " +
-                                         std::to_string(beams.azimuth_deg.size()));
+    at.child("beam_azimuth_angles")
+        .fail("must have as many entries as beam_altitude_angles (" + std::to_string(rows) + "), got " +
+              std::to_string(beams.azimuth_deg.size()));
   }
   const json* origin = reader.find("lidar_origin_to_beam_origin_mm");
-  beams.lidar_origin_to_beam_origin_mm = origin ? read_number(*origin, at.child("lidar_origin_to_beam_origin_mm"),
-                                                              kOffsetMm)
-                                                : default_origin_mm(prod_line);
+  beams.lidar_origin_to_beam_origin_mm =
+      origin ? read_number(*origin, at.child("lidar_origin_to_beam_origin_mm"), kOffsetMm)
+             : default_origin_mm(prod_line);
   beams.beam_to_lidar = kIdentity4;
   beams.beam_to_lidar[3] = beams.lidar_origin_to_beam_origin_mm;  // SDK default (protocol doc 3.1)
   if (const json* b = reader.find("beam_to_lidar_transform")) {

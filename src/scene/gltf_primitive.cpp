@@ -57,7 +57,8 @@ std::vector<float> read_positions(const tinygltf::Model& model, const tinygltf::
   }
   const AccessorView view = view_of(model, it->second, 3 * sizeof(float), where);
   std::vector<float> positions(3 * view.count);
-  for (size_t i = 0; i < view.count; ++i) std::memcpy(&positions[3 * i], view.base + i * view.stride, 3 * sizeof(float));
+  for (size_t i = 0; i < view.count; ++i)
+    std::memcpy(&positions[3 * i], view.base + i * view.stride, 3 * sizeof(float));
   return positions;
 }
 

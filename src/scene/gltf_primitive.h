@@ -13,8 +13,8 @@ struct Primitive;
 namespace lidartwin::scene_detail {
 
 struct PrimitiveTriangles {
-  std::vector<float> positions;    // x y z, in the primitive's own (glTF) frame
-  std::vector<uint32_t> indices;   // triangle list
+  std::vector<float> positions;   // x y z, in the primitive's own (glTF) frame
+  std::vector<uint32_t> indices;  // triangle list
 };
 
 // True for the modes we ray cast (4, 5, 6; glTF's default is 4).

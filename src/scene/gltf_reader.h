@@ -12,10 +12,10 @@ namespace lidartwin::scene_detail {
 
 // One glTF primitive placed by one node (a mesh used by two nodes gives two parts).
 struct MeshPart {
-  std::string label;               // "mesh 'tank' (#3) primitive 1", for messages
-  std::vector<float> vertices;     // x y z per vertex, world frame, metres
-  std::vector<uint32_t> indices;   // 3 per triangle, all < vertices.size() / 3
-  int material = -1;               // index into GltfContent::materials; -1 = the default material
+  std::string label;              // "mesh 'tank' (#3) primitive 1", for messages
+  std::vector<float> vertices;    // x y z per vertex, world frame, metres
+  std::vector<uint32_t> indices;  // 3 per triangle, all < vertices.size() / 3
+  int material = -1;              // index into GltfContent::materials; -1 = the default material
 };
 
 struct GltfContent {

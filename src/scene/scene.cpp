@@ -25,10 +25,10 @@ RTCGeometry make_geometry(RTCDevice device, const scene_detail::MeshPart& part) 
   const size_t vertex_count = part.vertices.size() / 3;
   const size_t triangle_count = part.indices.size() / 3;
   // Embree pads these buffers itself (its SIMD loads read past the last vertex).
-  void* vertices = rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                           3 * sizeof(float), vertex_count);
-  void* indices = rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                          3 * sizeof(uint32_t), triangle_count);
+  void* vertices =
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count);
+  void* indices = rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t),
+                                          triangle_count);
   if (vertices != nullptr) std::memcpy(vertices, part.vertices.data(), part.vertices.size() * sizeof(float));
   if (indices != nullptr) std::memcpy(indices, part.indices.data(), part.indices.size() * sizeof(uint32_t));
   rtcCommitGeometry(geometry);
@@ -40,7 +40,7 @@ RTCGeometry make_geometry(RTCDevice device, const scene_detail::MeshPart& part) 
 struct Scene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  std::vector<Material> materials;           // glTF materials, then the default one
+  std::vector<Material> materials;             // glTF materials, then the default one
   std::vector<unsigned> material_of_geometry;  // geomID → index into materials
   size_t triangles = 0;
   std::string embree_error;
@@ -54,8 +54,9 @@ struct Scene::Impl {
 Scene Scene::load(const std::filesystem::path& path) {
   scene_detail::GltfContent content = scene_detail::read_gltf(path);
   if (content.parts.empty()) {
-    throw InputError(path.string() + ": no triangles (only TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN primitives "
-                                     "of the default scene are ray cast)");
+    throw InputError(path.string() +
+                     ": no triangles (only TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN primitives "
+                     "of the default scene are ray cast)");
   }
   auto impl = std::make_unique<Impl>();
   impl->device = rtcNewDevice(nullptr);

@@ -43,7 +43,10 @@ class GltfBuilder {
     return push(doc_["meshes"], {{"name", name}, {"primitives", std::move(primitives)}});
   }
   int add_node(nlohmann::json node) { return push(doc_["nodes"], std::move(node)); }
-  void set_roots(const std::vector<int>& roots) { doc_["scenes"] = {{{"nodes", roots}}}; doc_["scene"] = 0; }
+  void set_roots(const std::vector<int>& roots) {
+    doc_["scenes"] = {{{"nodes", roots}}};
+    doc_["scene"] = 0;
+  }
 
   nlohmann::json document(const std::string& buffer_uri) const {
     nlohmann::json doc = doc_;
@@ -71,7 +74,8 @@ class GltfBuilder {
     std::vector<uint32_t> header{0x46546C67u, 2u, u32(12 + 8 + json.size() + 8 + bin.size()), u32(json.size()),
                                  0x4E4F534Au};
     std::ofstream out(path, std::ios::binary);
-    out.write(reinterpret_cast<const char*>(header.data()), 20).write(json.data(), static_cast<std::streamsize>(json.size()));
+    out.write(reinterpret_cast<const char*>(header.data()), 20)
+        .write(json.data(), static_cast<std::streamsize>(json.size()));
     const std::vector<uint32_t> bin_header{u32(bin.size()), 0x004E4942u};
     out.write(reinterpret_cast<const char*>(bin_header.data()), 8);
     out.write(reinterpret_cast<const char*>(bin.data()), static_cast<std::streamsize>(bin.size()));

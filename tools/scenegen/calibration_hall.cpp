@@ -18,7 +18,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kHalfLength = 115.0, kHalfWidth = 20.0, kHeight = 14.0, kSensorHeight = 4.0;
 
 struct Target {
-  double range_m;        // sensor to board centre
+  double range_m;  // sensor to board centre
   double reflectivity;
   double incidence_deg;  // board normal turned away from the line of sight
   double elevation_deg;  // row: 0 at sensor height, ±11° for the ladders
@@ -30,8 +30,8 @@ struct Target {
 // reflectivity ladder (row +11°), incidence ladders and retroreflective panels.
 std::vector<Target> target_list() {
   std::vector<Target> t;
-  for (double r : {1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 50.0,
-                   60.0, 70.0, 80.0, 90.0, 100.0}) {
+  for (double r : {1.0,  1.5,  2.0,  3.0,  4.0,  5.0,  6.0,  8.0,  10.0, 12.0, 15.0, 20.0,
+                   25.0, 30.0, 35.0, 40.0, 45.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0}) {
     t.push_back({r, 0.10, 0.0, 0.0});
   }
   for (double r : {2.5, 7.0, 28.0, 55.0, 85.0}) t.push_back({r, 0.80, 0.0, 0.0});
@@ -89,13 +89,15 @@ std::vector<double> candidate_azimuths(double home) {
 // Greedy, farthest board first: each takes the free azimuth nearest the hall's axis (boards from
 // 16 m) or its sides (nearer boards, which would otherwise hide a wide sector).
 void place(std::vector<Target>& targets) {
-  std::stable_sort(targets.begin(), targets.end(), [](const Target& a, const Target& b) { return a.range_m > b.range_m; });
+  std::stable_sort(targets.begin(), targets.end(),
+                   [](const Target& a, const Target& b) { return a.range_m > b.range_m; });
   std::vector<Extent> placed;
   for (Target& t : targets) {
     const auto fits = [&](double azimuth) {
       t.azimuth_deg = azimuth;
       const Extent e = extent_of(t);
-      return inside_hall(t) && std::none_of(placed.begin(), placed.end(), [&](const Extent& p) { return overlaps(p, e); });
+      return inside_hall(t) &&
+             std::none_of(placed.begin(), placed.end(), [&](const Extent& p) { return overlaps(p, e); });
     };
     const std::vector<double> candidates = candidate_azimuths(t.range_m >= 16.0 ? 0.0 : 90.0);
     const auto it = std::find_if(candidates.begin(), candidates.end(), fits);
@@ -107,8 +109,9 @@ void place(std::vector<Target>& targets) {
   }
 }
 
-// A board facing the sensor, turned by its incidence angle about its own vertical axis; far
-// boards reach down to the floor, clipped 0.1 m above it.
+// A 3 cm board whose front face passes through the point at its nominal range, facing the sensor,
+// turned by its incidence angle about its own vertical axis; far boards reach down to the floor,
+// clipped 0.1 m above it.
 Mesh board(const Target& t, const V& sensor) {
   const Eigen::Vector2d size = board_size(t.range_m);
   const V dir(static_cast<float>(std::cos(t.elevation_deg * kDeg) * std::cos(t.azimuth_deg * kDeg)),
@@ -123,7 +126,7 @@ Mesh board(const Target& t, const V& sensor) {
   const float half_h = static_cast<float>(size.y() / 2);
   const float down = std::min(half_h, centre.z() - 0.1f);
   Mesh mesh;
-  mesh.append(box({-static_cast<float>(size.x() / 2), -down, -0.015f}, {static_cast<float>(size.x() / 2), half_h, 0.015f}),
+  mesh.append(box({-static_cast<float>(size.x() / 2), -down, -0.03f}, {static_cast<float>(size.x() / 2), half_h, 0.0f}),
               Eigen::Translation3f(centre) * Eigen::Affine3f(axes));
   return mesh;
 }

@@ -42,7 +42,8 @@ double first_hit(RTCScene scene, const Eigen::Vector3d& origin, const Eigen::Vec
 
 }  // namespace
 
-Clearance min_clearance(const std::filesystem::path& scene_path, const std::vector<StampedPose>& poses, double horizon_m) {
+Clearance min_clearance(const std::filesystem::path& scene_path, const std::vector<StampedPose>& poses,
+                        double horizon_m) {
   const Scene scene = Scene::load(scene_path);
   Clearance clearance{horizon_m, poses.front().position};
   for (const StampedPose& pose : poses) {

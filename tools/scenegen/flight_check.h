@@ -8,8 +8,8 @@
 namespace lidartwin::scenegen {
 
 struct Clearance {
-  double distance_m;          // smallest distance from a pose to a surface (capped at the horizon)
-  Eigen::Vector3d where;      // the pose where it occurs
+  double distance_m;      // smallest distance from a pose to a surface (capped at the horizon)
+  Eigen::Vector3d where;  // the pose where it occurs
 };
 
 // Rays in 26 directions from every pose, up to `horizon_m`.

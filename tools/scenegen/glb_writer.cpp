@@ -44,9 +44,9 @@ tinygltf::Primitive make_primitive(tinygltf::Model& model, const Mesh& mesh, int
     upper = upper.cwiseMax(v);
   }
   tinygltf::Primitive primitive;
-  const int positions = add_accessor(
-      model, add_view(model, mesh.vertices.data(), mesh.vertices.size() * sizeof(Eigen::Vector3f), 34962),
-      TINYGLTF_COMPONENT_TYPE_FLOAT, mesh.vertices.size(), TINYGLTF_TYPE_VEC3);
+  const int positions =
+      add_accessor(model, add_view(model, mesh.vertices.data(), mesh.vertices.size() * sizeof(Eigen::Vector3f), 34962),
+                   TINYGLTF_COMPONENT_TYPE_FLOAT, mesh.vertices.size(), TINYGLTF_TYPE_VEC3);
   model.accessors.back().minValues = {lower.x(), lower.y(), lower.z()};
   model.accessors.back().maxValues = {upper.x(), upper.y(), upper.z()};
   primitive.attributes["POSITION"] = positions;
@@ -125,7 +125,8 @@ void GlbWriter::write(const std::filesystem::path& path) const {
     node.name = instance.name;
     node.mesh = instance.mesh;
     node.translation = {instance.translation.x(), instance.translation.y(), instance.translation.z()};
-    if (instance.yaw != 0.0) node.rotation = quaternion(Eigen::Quaterniond(Eigen::AngleAxisd(instance.yaw, Eigen::Vector3d::UnitZ())));
+    if (instance.yaw != 0.0)
+      node.rotation = quaternion(Eigen::Quaterniond(Eigen::AngleAxisd(instance.yaw, Eigen::Vector3d::UnitZ())));
     if (instance.scale != 1.0) node.scale = {instance.scale, instance.scale, instance.scale};
     model.nodes.push_back(node);
     root.children.push_back(static_cast<int>(model.nodes.size() - 1));

@@ -138,9 +138,9 @@ Mesh torus(float ring_radius, float tube_radius, int segments, int sides) {
 Mesh tube(const Eigen::Vector3f& a, const Eigen::Vector3f& b, float radius, int segments) {
   const Eigen::Vector3f axis = b - a;
   Mesh mesh;
-  mesh.append(cylinder(radius, axis.norm(), segments, false, false),
-              Eigen::Translation3f(a) *
-                  Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), axis.normalized()));
+  mesh.append(
+      cylinder(radius, axis.norm(), segments, false, false),
+      Eigen::Translation3f(a) * Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), axis.normalized()));
   return mesh;
 }
 

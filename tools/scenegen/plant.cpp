@@ -17,7 +17,9 @@ using V = Eigen::Vector3f;
 
 PlantMaterials add_materials(GlbWriter& out) {
   const auto add = [&out](const char* name, double rho, std::array<double, 3> color, double specular = 0.0,
-                          bool retro = false) { return out.add_material({name, rho, retro, specular, color}); };
+                          bool retro = false) {
+    return out.add_material({name, rho, retro, specular, color});
+  };
   PlantMaterials m{};
   m.gravel = add("gravel", 0.2, {0.45, 0.43, 0.4});
   m.asphalt = add("asphalt", 0.08, {0.15, 0.15, 0.15});
@@ -55,15 +57,18 @@ Parts grounds(const PlantMaterials& m) {
   for (const float y : {-92.0f, 92.0f}) p[m.asphalt].append(box({-170, y - 4, 0}, {170, y + 4, 0.03f}));
   for (const float x : {-65.0f, 135.0f}) p[m.asphalt].append(box({x - 4, -88, 0}, {x + 4, 88, 0.03f}));
   p[m.concrete].append(box({-50, -66, 0}, {125, 66, 0.05f}));
-  const float bund[4][4] = {{-148, -78, -78, -77.6f}, {-148, 77.6f, -78, 78}, {-148, -78, -147.6f, 78}, {-78.4f, -78, -78, 78}};
+  const float bund[4][4] = {
+      {-148, -78, -78, -77.6f}, {-148, 77.6f, -78, 78}, {-148, -78, -147.6f, 78}, {-78.4f, -78, -78, 78}};
   for (const auto& b : bund) p[m.concrete].append(box({b[0], b[1], 0}, {b[2], b[3], 1.5f}));
   p[m.concrete].append(box({-148, -0.2f, 0}, {-78, 0.2f, 1.5f}));
   return p;
 }
 
 void tank_farm(GlbWriter& out, const PlantMaterials& m) {
-  place(out, storage_tank(m, 12.0f, 14.0f, false), "tank_a", {{-130, -60, 0, 0.3}, {-130, 20, 0, 2.1}, {-95, -20, 0, 4.0}});
-  place(out, storage_tank(m, 11.0f, 16.0f, true), "tank_b", {{-130, 60, 0, 1.2}, {-95, -60, 0, 5.1}, {-95, 60, 0, 3.3}});
+  place(out, storage_tank(m, 12.0f, 14.0f, false), "tank_a",
+        {{-130, -60, 0, 0.3}, {-130, 20, 0, 2.1}, {-95, -20, 0, 4.0}});
+  place(out, storage_tank(m, 11.0f, 16.0f, true), "tank_b",
+        {{-130, 60, 0, 1.2}, {-95, -60, 0, 5.1}, {-95, 60, 0, 3.3}});
   place(out, storage_tank(m, 10.0f, 12.0f, false), "tank_c", {{-130, -20, 0, 0.8}, {-95, 20, 0, 2.7}});
   Parts transfer;  // tank outlets up and over the road onto the main rack
   for (const float y : {-60.0f, -20.0f, 20.0f, 60.0f}) {
@@ -80,14 +85,16 @@ void tank_farm(GlbWriter& out, const PlantMaterials& m) {
 void process_area(GlbWriter& out, const PlantMaterials& m) {
   place(out, pipe_rack(m, 180.0f, 3, 10), "main_rack", {{-55, 0, 0, 0}});
   place(out, pipe_rack(m, 66.0f, 2, 8), "cross_rack", {{15, -75, 0, kPi / 2}, {15, 9, 0, kPi / 2}});
-  place(out, process_module(m), "process_module", {{-22, 30, 0, 0}, {-22, -30, 0, kPi}, {48, 30, 0, 0}, {48, -30, 0, kPi}});
-  const double towers[6][4] = {{-30, 55, 2.5, 45}, {-14, 56, 2.0, 38}, {40, 55, 3.0, 42},
+  place(out, process_module(m), "process_module",
+        {{-22, 30, 0, 0}, {-22, -30, 0, kPi}, {48, 30, 0, 0}, {48, -30, 0, kPi}});
+  const double towers[6][4] = {{-30, 55, 2.5, 45}, {-14, 56, 2.0, 38},  {40, 55, 3.0, 42},
                                {56, 56, 1.8, 30},  {-25, -55, 2.2, 35}, {45, -56, 2.6, 40}};
   for (const auto& t : towers) {
     place(out, column_tower(m, static_cast<float>(t[2]), static_cast<float>(t[3])), "column",
           {{t[0], t[1], 0, unit_hash(static_cast<uint64_t>(t[3]), 3) * 2 * kPi}});
   }
-  place(out, horizontal_drum(m, 1.8f, 12.0f), "drum", {{82, 14, 0, 0}, {82, 24, 0, 0}, {82, -14, 0, 0}, {82, -24, 0, 0}});
+  place(out, horizontal_drum(m, 1.8f, 12.0f), "drum",
+        {{82, 14, 0, 0}, {82, 24, 0, 0}, {82, -14, 0, 0}, {82, -24, 0, 0}});
   place(out, spherical_tank(m, 8.0f), "sphere", {{82, 52, 0, 0}, {82, -52, 0, 0.3}});
   place(out, flare_stack(m, 55.0f), "flare", {{118, 62, 0, 0}});
 }
@@ -107,8 +114,17 @@ void buildings_and_furniture(GlbWriter& out, const PlantMaterials& m) {
   place(out, light_pole(m), "light_pole", poles);
   // Sign panels face -y in their frame; yaw turns them towards the road they serve.
   place(out, sign(m), "retro_sign",
-        {{-60, -86, 0, 0}, {-60, 86, 0, kPi}, {130, -86, 0, 0}, {130, 86, 0, kPi}, {0, -86, 0, 0}, {0, 86, 0, kPi},
-         {-76, -40, 0, kPi / 2}, {-76, 40, 0, kPi / 2}, {-5, 16, 0, 0}, {30, -16, 0, kPi}, {97, -30, 0, -kPi / 2},
+        {{-60, -86, 0, 0},
+         {-60, 86, 0, kPi},
+         {130, -86, 0, 0},
+         {130, 86, 0, kPi},
+         {0, -86, 0, 0},
+         {0, 86, 0, kPi},
+         {-76, -40, 0, kPi / 2},
+         {-76, 40, 0, kPi / 2},
+         {-5, 16, 0, 0},
+         {30, -16, 0, kPi},
+         {97, -30, 0, -kPi / 2},
          {97, -40, 0, -kPi / 2}});
 }
 

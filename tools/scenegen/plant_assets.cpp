@@ -68,7 +68,8 @@ Parts storage_tank(const PlantMaterials& m, float radius, float height, bool dom
   const int steps = static_cast<int>(height / 0.2f);
   for (int i = 0; i < steps; ++i) {
     const float a = 2.0f * kPi / 3.0f * static_cast<float>(i) / static_cast<float>(steps);
-    const V centre((radius + 0.55f) * std::cos(a), (radius + 0.55f) * std::sin(a), 0.4f + 0.2f * static_cast<float>(i + 1));
+    const V centre((radius + 0.55f) * std::cos(a), (radius + 0.55f) * std::sin(a),
+                   0.4f + 0.2f * static_cast<float>(i + 1));
     parts[m.steel_galvanized].append(box_at(centre, {0.9f, 0.28f, 0.05f}, a));
   }
   parts[m.steel_galvanized].append(tube({radius + 1.0f, 0, 0.8f}, {radius + 4.0f, 0, 0.8f}, 0.3f, 24));  // outlet
@@ -87,8 +88,8 @@ Parts column_tower(const PlantMaterials& m, float radius, float height) {
     for (int k = 0; k < 3; ++k) {  // nozzles
       const float a = 2.0f * kPi * (static_cast<float>(k) / 3.0f + 0.1f);
       const V dir(std::cos(a), std::sin(a), 0.0f);
-      parts[m.steel_galvanized].append(tube((radius - 0.1f) * dir + V(0, 0, z + 0.8f),
-                                            (radius + 0.9f) * dir + V(0, 0, z + 0.8f), 0.15f, 16));
+      parts[m.steel_galvanized].append(
+          tube((radius - 0.1f) * dir + V(0, 0, z + 0.8f), (radius + 0.9f) * dir + V(0, 0, z + 0.8f), 0.15f, 16));
     }
   }
   ladder(parts[m.steel_yellow], radius + 1.3f, 0.0f, 1.0f, height - 1.0f);

@@ -15,7 +15,7 @@ namespace lidartwin::scenegen {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kA = 152.0, kB = 100.0;     // half-extents of the loop, metres
+constexpr double kA = 152.0, kB = 100.0;      // half-extents of the loop, metres
 constexpr double kSpeed = 4.0, kRate = 20.0;  // m/s, samples per second
 constexpr double kGravity = 9.81;
 
@@ -74,7 +74,8 @@ std::vector<StampedPose> plant_inspection_flight() {
     StampedPose pose;
     pose.time_s = k / kRate;
     pose.position = {p.x(), p.y(), z};
-    pose.rotation = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+    pose.rotation =
+        Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
     poses.push_back(pose);
   }
   poses.back().position = poses.front().position;  // close exactly, despite the table's rounding

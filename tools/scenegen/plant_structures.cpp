@@ -35,7 +35,8 @@ void module_frame(Parts& parts, const PlantMaterials& m) {
       }
     }
     for (float x = -15; x <= 15; x += 1.5f) {  // edge rail posts, long sides
-      for (const float y : {-12.0f, 12.0f}) parts[m.steel_yellow].append(box_at({x, y, z + 0.75f}, {0.05f, 0.05f, 1.1f}));
+      for (const float y : {-12.0f, 12.0f})
+        parts[m.steel_yellow].append(box_at({x, y, z + 0.75f}, {0.05f, 0.05f, 1.1f}));
     }
   }
   for (const float y : {-12.0f, 12.0f}) {  // X bracing on the long faces
@@ -68,8 +69,8 @@ void module_equipment(Parts& parts, const PlantMaterials& m) {
   for (int k = 0; k < 5; ++k) {  // air cooler fans on the roof
     const V c(-12.0f + 6.0f * static_cast<float>(k), 0.0f, 18.2f);
     parts[m.grating].append(box(c + V(-2.8f, -5.5f, 0), c + V(2.8f, 5.5f, 0.3f)));
-    for (const float y : {-3.0f, 3.0f}) parts[m.steel_galvanized].append(cylinder(1.3f, 0.9f, 32, false, false),
-                                                                            at(c + V(0, y, 0.3f)));
+    for (const float y : {-3.0f, 3.0f})
+      parts[m.steel_galvanized].append(cylinder(1.3f, 0.9f, 32, false, false), at(c + V(0, y, 0.3f)));
   }
 }
 
@@ -170,10 +171,12 @@ Parts fence(const PlantMaterials& m, const Eigen::Vector2f& half, float gate) {
       const V b = from + (to - from) * static_cast<float>(i + 1) / static_cast<float>(spans);
       if (std::abs(a.x()) < gate || std::abs(a.y()) < gate) continue;
       parts[m.steel_galvanized].append(member(a, a + V(0, 0, 2.4f), 0.08f));
-      for (const float z : {0.3f, 2.3f}) parts[m.steel_galvanized].append(member(a + V(0, 0, z), b + V(0, 0, z), 0.05f));
+      for (const float z : {0.3f, 2.3f})
+        parts[m.steel_galvanized].append(member(a + V(0, 0, z), b + V(0, 0, z), 0.05f));
     }
   };
-  const V c00(-half.x(), -half.y(), 0), c10(half.x(), -half.y(), 0), c11(half.x(), half.y(), 0), c01(-half.x(), half.y(), 0);
+  const V c00(-half.x(), -half.y(), 0), c10(half.x(), -half.y(), 0), c11(half.x(), half.y(), 0),
+      c01(-half.x(), half.y(), 0);
   side(c00, c10);
   side(c10, c11);
   side(c11, c01);
