@@ -477,6 +477,27 @@ TEST(HttpServer, PortInUseIsExplained) {
   first.stop();  // idempotent
 }
 
+TEST(HttpServer, EachSensorCanHaveItsOwnLoopbackAddress) {
+  lidartwin::Sensor sensor(test_identity());
+  HttpServer server(sensor, {.address = "127.0.0.2", .port = 0});
+  server.start();
+  httplib::Client http("127.0.0.2", server.port());
+  const auto result = http.Post("/api/v1/sensor/config?staging=true&reinit=false&persist=false",
+                                R"({"udp_dest":"@auto"})", "application/json");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 200);
+  EXPECT_EQ(sensor.staged_config().at("udp_dest"), "127.0.0.1");  // the client's address
+  EXPECT_EQ(json::parse(http.Get("/api/v1/system/network")->body).at("ipv4").at("addr"),
+            "127.0.0.2/8");
+}
+
+TEST(HttpServer, AnAddressOfAnotherHostIsExplained) {
+  lidartwin::Sensor sensor(test_identity());
+  HttpServer server(sensor, {.address = "192.0.2.55", .port = 0});  // TEST-NET-1, not local
+  EXPECT_THAT([&] { server.start(); },
+              testing::ThrowsMessage<lidartwin::BindError>(HasSubstr("no such local address")));
+}
+
 // Protocol doc 2.1: the remedies for port 80 (the root-only suite binds it for real).
 TEST(HttpServer, PermissionDeniedOnPort80ExplainsTheRemedies) {
   const std::string message = lidartwin::describe_bind_error("127.0.0.1", 80, EACCES);

@@ -149,9 +149,8 @@ struct Rule {
   Check check;
 };
 
-std::vector<Rule> rules(const ConfigLimits& limits) {
-  const std::vector<std::string> polarity{"ACTIVE_HIGH", "ACTIVE_LOW"};
-  const std::vector<std::string> fsr{"NORMAL", "EXTENDED"};
+// Where and how the data goes.
+std::vector<Rule> stream_rules(const ConfigLimits& limits) {
   return {
       {"udp_dest", ipv4_address(false)},
       {"udp_dest_zm", ipv4_address(true)},
@@ -162,16 +161,34 @@ std::vector<Rule> rules(const ConfigLimits& limits) {
       {"udp_multicast_ttl", integer(0, 255)},
       {"udp_multicast_ttl_zm", integer(0, 255)},
       {"lidar_mode", lidar_mode(limits.lidar_modes)},
-      {"timestamp_mode",
-       one_of({"TIME_FROM_INTERNAL_OSC", "TIME_FROM_SYNC_PULSE_IN", "TIME_FROM_PTP_1588"})},
       {"operating_mode", one_of({"NORMAL", "STANDBY"})},
       {"auto_start_flag", zero_or_one()},
-      {"multipurpose_io_mode",
-       one_of({"OFF", "INPUT_NMEA_UART", "OUTPUT_FROM_INTERNAL_OSC", "OUTPUT_FROM_SYNC_PULSE_IN",
-               "OUTPUT_FROM_PTP_1588", "OUTPUT_FROM_ENCODER_ANGLE"})},
       {"azimuth_window", azimuth_window()},
       {"lidar_frame_azimuth_offset", integer(0, 360000)},
       {"signal_multiplier", signal_multiplier()},
+      {"columns_per_packet", integer_in({1, 2, 4, 8, 16, 32, 64})},
+      {"udp_profile_lidar", udp_profile_lidar(limits.udp_profiles_lidar)},
+      {"udp_profile_imu", one_of({"LEGACY", "ACCEL32_GYRO32_NMEA", "OFF"})},
+      {"header_type", one_of({"STANDARD", "FUSA"})},
+      {"imu_packets_per_frame", integer(0, 1000)},
+      {"gyro_fsr", one_of({"NORMAL", "EXTENDED"})},
+      {"accel_fsr", one_of({"NORMAL", "EXTENDED"})},
+      {"return_order",
+       one_of({"STRONGEST_TO_WEAKEST", "FARTHEST_TO_NEAREST", "NEAREST_TO_FARTHEST"})},
+      {"min_range_threshold_cm", integer(0, 100000)},
+      {"bloom_reduction_optimization", one_of({"BALANCED", "MINIMIZE_FALSE_POSITIVES"})},
+  };
+}
+
+// Time sources and the sync/NMEA connector.
+std::vector<Rule> timing_rules() {
+  const std::vector<std::string> polarity{"ACTIVE_HIGH", "ACTIVE_LOW"};
+  return {
+      {"timestamp_mode",
+       one_of({"TIME_FROM_INTERNAL_OSC", "TIME_FROM_SYNC_PULSE_IN", "TIME_FROM_PTP_1588"})},
+      {"multipurpose_io_mode",
+       one_of({"OFF", "INPUT_NMEA_UART", "OUTPUT_FROM_INTERNAL_OSC", "OUTPUT_FROM_SYNC_PULSE_IN",
+               "OUTPUT_FROM_PTP_1588", "OUTPUT_FROM_ENCODER_ANGLE"})},
       {"nmea_in_polarity", one_of(polarity)},
       {"sync_pulse_in_polarity", one_of(polarity)},
       {"sync_pulse_out_polarity", one_of(polarity)},
@@ -183,18 +200,14 @@ std::vector<Rule> rules(const ConfigLimits& limits) {
       {"sync_pulse_out_pulse_width", integer(0, 1000000)},
       {"phase_lock_enable", boolean()},
       {"phase_lock_offset", integer(0, 360000)},
-      {"columns_per_packet", integer_in({1, 2, 4, 8, 16, 32, 64})},
-      {"udp_profile_lidar", udp_profile_lidar(limits.udp_profiles_lidar)},
-      {"udp_profile_imu", one_of({"LEGACY", "ACCEL32_GYRO32_NMEA", "OFF"})},
-      {"header_type", one_of({"STANDARD", "FUSA"})},
-      {"imu_packets_per_frame", integer(0, 1000)},
-      {"gyro_fsr", one_of(fsr)},
-      {"accel_fsr", one_of(fsr)},
-      {"return_order",
-       one_of({"STRONGEST_TO_WEAKEST", "FARTHEST_TO_NEAREST", "NEAREST_TO_FARTHEST"})},
-      {"min_range_threshold_cm", integer(0, 100000)},
-      {"bloom_reduction_optimization", one_of({"BALANCED", "MINIMIZE_FALSE_POSITIVES"})},
   };
+}
+
+std::vector<Rule> rules(const ConfigLimits& limits) {
+  auto all = stream_rules(limits);
+  auto timing = timing_rules();
+  all.insert(all.end(), timing.begin(), timing.end());
+  return all;
 }
 
 // Consumers dereference these without checking (protocol doc 3.1), so they must be present.

@@ -16,7 +16,7 @@ namespace {
 constexpr int kFormatVersion = 1;
 
 SavedState parse_state(const nlohmann::json& document, const std::string& source) {
-  if (!document.is_object() || document.value("lidartwin_state", 0) != kFormatVersion) {
+  if (!document.is_object() || document.value("lidartwin_state", nlohmann::json()) != kFormatVersion) {
     throw InputError(source + ": not a lidartwin state file (expected \"lidartwin_state\": " +
                      std::to_string(kFormatVersion) + ")");
   }
