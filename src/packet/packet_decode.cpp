@@ -7,6 +7,7 @@
 #include <cstring>
 #include <string>
 
+#include "packet/footer.h"
 #include "packet/packet_format_impl.h"
 
 namespace lidartwin {
@@ -94,16 +95,29 @@ void decode_column(const packet_detail::FormatCodecs& impl, std::span<const uint
   decode_pixels(impl, packet, index, m, scan);
 }
 
-// Protocol doc 4.5; a CRC equal to the marker or to zero has odds of 2^-64, so those are tested first.
-std::pair<FooterKind, bool> classify_footer(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet) {
-  if (!impl.crc_footer) return {FooterKind::kNone, true};
-  const auto body = packet.first(packet.size() - packet_detail::kCrcBytes);
-  uint64_t word = 0;
-  std::memcpy(&word, packet.data() + body.size(), sizeof word);
-  if (word == kFw2FooterMarker) return {FooterKind::kFw2Marker, true};
-  if (word == 0) return {FooterKind::kZero, true};
-  if (word == crc64_xz(body)) return {FooterKind::kCrc64, true};
-  return {FooterKind::kOther, false};
+std::string size_error(const packet_detail::FormatCodecs& impl, size_t size) {
+  const LidarDataFormat& f = impl.format;
+  return std::to_string(size) + " bytes, expected " + std::to_string(impl.packet_size) + " for " +
+         std::string(to_string(f.udp_profile_lidar)) + " with " + std::to_string(f.pixels_per_column) +
+         " pixels x " + std::to_string(f.columns_per_packet) + " columns";
+}
+
+// Header, first measurement id and footer; reads only, so a packet can be refused after it.
+PacketFormat::Decoded decode_header(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet) {
+  PacketFormat::Decoded decoded;
+  bool frame_id_in_header = false;
+  for (const auto& [field, codec] : impl.header) {
+    packet_detail::set_header_value(decoded.header, field, codec.get(packet));
+    frame_id_in_header |= field == packet_detail::HeaderField::kFrameId;
+  }
+  // LEGACY carries frame_id per column; the SDK takes column 0's (protocol doc 4.2).
+  if (!frame_id_in_header) {
+    decoded.header.frame_id = static_cast<uint32_t>(column_field(impl, packet, 0, ColumnField::kFrameId));
+  }
+  decoded.first_measurement_id = static_cast<int>(column_field(impl, packet, 0, ColumnField::kMeasurementId));
+  decoded.footer = FooterKind::kNone;
+  if (impl.crc_footer) std::tie(decoded.footer, decoded.crc_ok) = packet_detail::classify_footer(packet);
+  return decoded;
 }
 
 }  // namespace
@@ -112,29 +126,16 @@ std::optional<PacketFormat::Decoded> PacketFormat::decode(std::span<const uint8_
                                                           std::string* error) const {
   const Impl& impl = *impl_;
   const LidarDataFormat& f = impl.format;
-  if (packet.size() != impl.packet_size) {
-    return failure(error, std::to_string(packet.size()) + " bytes, expected " + std::to_string(impl.packet_size) +
-                              " for " + std::string(to_string(f.udp_profile_lidar)) + " with " +
-                              std::to_string(f.pixels_per_column) + " pixels x " +
-                              std::to_string(f.columns_per_packet) + " columns");
-  }
+  if (packet.size() != impl.packet_size) return failure(error, size_error(impl, packet.size()));
   if (auto mismatch = scan_mismatch(impl, scan)) return failure(error, *mismatch);
-  Decoded decoded;
-  for (const auto& [field, codec] : impl.header) packet_detail::set_header_value(decoded.header, field, codec.get(packet));
+  const Decoded decoded = decode_header(impl, packet);
   if (decoded.header.packet_type != 1) {
     return failure(error, "packet_type " + std::to_string(decoded.header.packet_type) + ", expected 1 (lidar)");
   }
-  // LEGACY carries frame_id per column; the SDK takes column 0's (protocol doc 4.2).
-  if (std::none_of(impl.header.begin(), impl.header.end(),
-                   [](const auto& h) { return h.field == packet_detail::HeaderField::kFrameId; })) {
-    decoded.header.frame_id = static_cast<uint32_t>(column_field(impl, packet, 0, ColumnField::kFrameId));
-  }
-  decoded.first_measurement_id = static_cast<int>(column_field(impl, packet, 0, ColumnField::kMeasurementId));
-  std::tie(decoded.footer, decoded.crc_ok) = classify_footer(impl, packet);
 
-  const bool first_packet_of_scan =
-      std::all_of(scan.packet_received.begin(), scan.packet_received.end(), [](uint64_t n) { return n == 0; });
-  if (first_packet_of_scan) scan.header = decoded.header;
+  if (std::all_of(scan.packet_received.begin(), scan.packet_received.end(), [](uint64_t n) { return n == 0; })) {
+    scan.header = decoded.header;
+  }
   for (int i = 0; i < f.columns_per_packet; ++i) {
     const auto m = static_cast<int>(column_field(impl, packet, i, ColumnField::kMeasurementId));
     if (m < f.columns_per_frame) decode_column(impl, packet, i, m, scan);  // the SDK drops m >= W (4.7)

@@ -4,6 +4,7 @@
 #include <cassert>
 #include <cstring>
 
+#include "packet/footer.h"
 #include "packet/packet_format_impl.h"
 
 namespace lidartwin {
@@ -74,14 +75,6 @@ void encode_column(const packet_detail::FormatCodecs& impl, const PacketHeader& 
   encode_pixels(impl, scan, index, m, out);
 }
 
-void write_footer(std::span<uint8_t> out, FooterKind footer) {
-  const auto body = out.first(out.size() - packet_detail::kCrcBytes);
-  uint64_t word = 0;
-  if (footer == FooterKind::kCrc64) word = crc64_xz(body);
-  if (footer == FooterKind::kFw2Marker) word = kFw2FooterMarker;
-  std::memcpy(out.data() + body.size(), &word, sizeof word);
-}
-
 }  // namespace
 
 // Header values are truncated to their field widths, so a running frame counter wraps at 2^16
@@ -98,7 +91,7 @@ void PacketFormat::encode(const PacketHeader& header, const Scan& scan, int firs
     codec.set(out, packet_detail::header_value(header, field) & codec.max_value());
   }
   for (int i = 0; i < cpp; ++i) encode_column(impl, header, scan, i, first_column + i, out);
-  if (impl.crc_footer) write_footer(out, footer);
+  if (impl.crc_footer) packet_detail::write_footer(out, footer);
 }
 
 }  // namespace lidartwin
