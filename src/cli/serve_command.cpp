@@ -1,0 +1,151 @@
+// `lidartwin serve`: the daemon. A Sensor (state machine) behind the HTTP API, and a Streamer that
+// follows the sensor's active config; Ctrl-C or SIGTERM stops both and exits 0.
+#include <algorithm>
+#include <csignal>
+#include <iostream>
+
+#include <sys/prctl.h>
+
+#include <asio.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include "cli/command.h"
+#include "cli/serve_inputs.h"
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/error.h"
+#include "lidartwin/http_api/http_server.h"
+#include "lidartwin/packet/data_format.h"
+#include "lidartwin/scene/scene.h"
+#include "lidartwin/streamer/streamer.h"
+
+namespace lidartwin::cli {
+namespace {
+
+void setup_logging(const std::string& level) {
+  auto logger = spdlog::stderr_color_mt("lidartwin");
+  spdlog::set_default_logger(logger);
+  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  spdlog::set_level(spdlog::level::from_str(level));
+}
+
+// The bind error's remedies (protocol doc 2.1) as one line on stderr.
+int report_bind_error(const BindError& error) {
+  std::string message = error.what();
+  std::replace(message.begin(), message.end(), '\n', ' ');
+  std::cerr << "lidartwin: " << message << std::endl;
+  return 2;
+}
+
+// Runs until SIGINT/SIGTERM: the signal stops the streamer, which leaves the io_context without
+// work, so run() returns; then the HTTP server is stopped and the subscription dropped.
+int run_daemon(asio::io_context& io, Sensor& sensor, HttpServer& http, Streamer& streamer) {
+  streamer.on_stats([&sensor](const StreamStats& stats) { sensor.set_stream_stats(stats); });
+  const int subscription = sensor.subscribe([&streamer](const Sensor::StreamConfigPtr& config) { streamer.apply(config); });
+  asio::signal_set signals(io, SIGINT, SIGTERM);
+  signals.async_wait([&streamer](const asio::error_code& error, int signal_number) {
+    if (error) return;
+    spdlog::info("serve: {} received, stopping", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
+    streamer.stop();
+  });
+  // The send clock's wake-ups should not be rounded up by the default 50 us timer slack.
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+  io.run();
+  sensor.unsubscribe(subscription);
+  http.stop();
+  spdlog::info("serve: stopped");
+  return 0;
+}
+
+Sensor make_sensor(const ServeFlags& flags, const SensorProfile& profile, const std::array<uint8_t, 4>& address) {
+  SensorOptions options;
+  options.state_file = flags.state_file;
+  options.config_overrides = config_overrides(flags);
+  try {
+    return Sensor(make_identity(profile, address), options);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--lidar-mode/--udp-profile/--state-file: ") + e.what());
+  }
+}
+
+int serve(const ServeFlags& flags) {
+  setup_logging(flags.log_level);
+  const auto address = parse_address(flags.address);
+  const SensorProfile profile = load_profile(flags.profile);
+  EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  const auto scene_file = scene_path(flags);
+  Trajectory trajectory = load_trajectory(flags);
+  const Scene scene = Scene::load(scene_file);
+  spdlog::info("serve: {} ({}) in {} ({} triangles), trajectory of {:.1f} s", profile.prod_line, profile.name,
+               scene_file.string(), scene.triangle_count(), trajectory.duration_s());
+  Sensor sensor = make_sensor(flags, profile, address);
+
+  HttpServerOptions http_options;
+  http_options.address = flags.address;
+  http_options.port = flags.http_port;
+  HttpServer http(sensor, http_options);
+  try {
+    http.start();
+  } catch (const BindError& e) {
+    return report_bind_error(e);
+  }
+  spdlog::info("serve: sensor {} sn {} answering on http://{}:{}/api/v1/", sensor.identity().prod_line,
+               sensor.identity().prod_sn, flags.address, http.port());
+
+  asio::io_context io;
+  StreamerOptions options;
+  options.source_address = address;
+  options.render.seed = flags.seed;
+  options.render.threads = flags.threads;
+  options.record_dir = flags.record_dir;
+  Streamer streamer(io, scene, profile, std::move(chain), std::move(trajectory), options);
+  return run_daemon(io, sensor, http, streamer);
+}
+
+CLI::Validator lidar_mode_validator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        return parse_lidar_mode(value) ? "" : "expected WIDTHxRATE with width 512/1024/2048/4096, e.g. 1024x10";
+      },
+      "MODE");
+}
+
+CLI::Validator udp_profile_validator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        if (udp_profile_lidar_from_string(value)) return "";
+        std::string names;
+        for (const auto name : udp_profile_lidar_names()) names += (names.empty() ? "" : ", ") + std::string(name);
+        return "expected one of " + names;
+      },
+      "PROFILE");
+}
+
+void setup_serve(CLI::App& app, std::function<int()>& run) {
+  auto flags = std::make_shared<ServeFlags>();
+  CLI::App* sub = app.add_subcommand("serve", "Run a virtual sensor: HTTP API and UDP lidar/IMU streams");
+  sub->add_option("--profile", flags->profile, "sensor profile name or .json path")->capture_default_str();
+  sub->add_option("--scene", flags->scene, "glTF scene (default scenes/plant.glb)");
+  auto* trajectory = sub->add_option("--trajectory", flags->trajectory,
+                                     "TUM trajectory (default scenes/plant_inspection.tum with the default scene)");
+  sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\"")->excludes(trajectory);
+  sub->add_option("--address", flags->address, "the sensor's IPv4 address (HTTP and UDP source)")->capture_default_str();
+  sub->add_option("--http-port", flags->http_port, "HTTP port (80 as on a real sensor; 0 = any)")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
+  sub->add_option("--seed", flags->seed, "noise seed")->capture_default_str();
+  sub->add_option("--record", flags->record_dir, "also write every sent packet to DIR/capture.pcap + DIR/metadata.json");
+  sub->add_option("--lidar-mode", flags->lidar_mode, "initial lidar_mode, e.g. 1024x10")->check(lidar_mode_validator());
+  sub->add_option("--udp-profile", flags->udp_profile, "initial udp_profile_lidar")->check(udp_profile_validator());
+  sub->add_option("--state-file", flags->state_file, "where persisted config and user data live");
+  sub->add_option("--threads", flags->threads, "ray casting threads (0 = all cores)")->check(CLI::Range(0, 1024));
+  sub->add_option("--log-level", flags->log_level, "trace, debug, info, warn, error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+      ->capture_default_str();
+  sub->callback([&run, flags] { run = [flags] { return serve(*flags); }; });
+}
+
+const RegisterCommand registered("serve", setup_serve);
+
+}  // namespace
+}  // namespace lidartwin::cli

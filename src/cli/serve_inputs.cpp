@@ -1,0 +1,77 @@
+#include "cli/serve_inputs.h"
+
+#include <cstdlib>
+
+#include <asio/ip/address_v4.hpp>
+#include <spdlog/spdlog.h>
+
+#include "lidartwin/error.h"
+
+namespace lidartwin::cli {
+
+namespace {
+constexpr const char* kDefaultScene = "scenes/plant.glb";
+constexpr const char* kDefaultTrajectory = "scenes/plant_inspection.tum";
+}  // namespace
+
+std::filesystem::path source_dir() {
+  if (const char* env = std::getenv("LIDARTWIN_SOURCE_DIR"); env && *env) return env;
+  return LIDARTWIN_SOURCE_DIR;
+}
+
+std::filesystem::path find_input(const std::string& flag, const std::string& value) {
+  const std::filesystem::path given(value);
+  if (std::filesystem::is_regular_file(given)) return given;
+  const std::filesystem::path in_source = source_dir() / given;
+  if (given.is_relative() && std::filesystem::is_regular_file(in_source)) return in_source;
+  std::string message = flag + " " + value + ": no such file";
+  if (given.is_relative()) message += " (looked in the working directory and in " + source_dir().string() + ")";
+  throw InputError(message + "; set LIDARTWIN_SOURCE_DIR to the lidartwin source tree, or pass a path");
+}
+
+std::filesystem::path scene_path(const ServeFlags& flags) {
+  return find_input("--scene", flags.scene.empty() ? kDefaultScene : flags.scene);
+}
+
+Trajectory load_trajectory(const ServeFlags& flags) {
+  if (!flags.pose.empty()) {
+    try {
+      return Trajectory::constant(parse_pose(flags.pose));
+    } catch (const InputError& e) {
+      throw InputError(std::string("--pose: ") + e.what());
+    }
+  }
+  if (!flags.trajectory.empty()) return Trajectory::load_tum(find_input("--trajectory", flags.trajectory));
+  if (flags.scene.empty()) return Trajectory::load_tum(find_input("--trajectory", kDefaultTrajectory));
+  spdlog::warn("serve: no --trajectory or --pose for scene {}: the sensor stands still at the world origin",
+               flags.scene);
+  return Trajectory::constant(Pose{});
+}
+
+std::array<uint8_t, 4> parse_address(const std::string& address) {
+  asio::error_code error;
+  const auto parsed = asio::ip::make_address_v4(address, error);
+  if (error) throw InputError("--address " + address + ": not an IPv4 address (e.g. 127.0.0.2)");
+  return parsed.to_bytes();
+}
+
+SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address) {
+  SensorIdentity identity;
+  identity.prod_line = profile.prod_line;
+  identity.prod_pn = profile.prod_pn;
+  identity.beams = profile.beams;
+  identity.limits.lidar_modes = profile.lidar_modes;
+  // 12 digits like a real serial; the last six from the address's last two bytes.
+  const unsigned suffix = static_cast<unsigned>(address[2]) * 256u + address[3];
+  identity.prod_sn = "122201" + fmt::format("{:06}", suffix);
+  return identity;
+}
+
+nlohmann::json config_overrides(const ServeFlags& flags) {
+  nlohmann::json overrides = nlohmann::json::object();
+  if (!flags.lidar_mode.empty()) overrides["lidar_mode"] = flags.lidar_mode;
+  if (!flags.udp_profile.empty()) overrides["udp_profile_lidar"] = flags.udp_profile;
+  return overrides;
+}
+
+}  // namespace lidartwin::cli

@@ -1,0 +1,51 @@
+#pragma once
+// What `lidartwin serve` loads before it starts: built-in defaults resolved against the source
+// tree, files checked with messages that name the flag.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "lidartwin/pose/pose.h"
+#include "lidartwin/profile/sensor_profile.h"
+#include "lidartwin/sensor/sensor.h"
+
+namespace lidartwin::cli {
+
+struct ServeFlags {
+  std::string profile = "os1-64";
+  std::string scene;       // empty: scenes/plant.glb
+  std::string trajectory;  // empty: scenes/plant_inspection.tum with the default scene
+  std::string pose;        // "x y z qx qy qz qw": a sensor standing still
+  std::string address = "127.0.0.1";
+  int http_port = 80;
+  uint64_t seed = 0;
+  std::string record_dir;
+  std::string lidar_mode;   // empty: the sensor's default (1024x10) or the state file's
+  std::string udp_profile;  // likewise
+  std::string state_file;
+  int threads = 0;
+  std::string log_level = "info";
+};
+
+// $LIDARTWIN_SOURCE_DIR, else the source tree this binary was built from.
+std::filesystem::path source_dir();
+// An existing file for a flag: as given (relative to the working directory), else relative to the
+// source tree. Throws InputError naming the flag, the value and where it looked.
+std::filesystem::path find_input(const std::string& flag, const std::string& value);
+
+std::filesystem::path scene_path(const ServeFlags& flags);
+// --pose, else --trajectory, else the default scene's inspection flight, else the identity pose.
+Trajectory load_trajectory(const ServeFlags& flags);
+// --address as 4 bytes; throws InputError naming the flag unless it is an IPv4 literal.
+std::array<uint8_t, 4> parse_address(const std::string& address);
+
+// Who this virtual sensor is: the profile's product and beams; a serial number that differs per
+// address, so sensors side by side are told apart by clients (prod_sn in every packet, 4.3).
+SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address);
+// Config keys the flags set over the saved/default config.
+nlohmann::json config_overrides(const ServeFlags& flags);
+
+}  // namespace lidartwin::cli
