@@ -405,5 +405,42 @@ TEST(ImuPacket, DecodesRealPacketAndRoundTrips) {
   EXPECT_FALSE(decode_legacy_imu(std::span(bytes).first(47)));
 }
 
+TEST(ImuPacket, NmeaProfileRoundTripsAndChecksItsInput) {
+  EXPECT_EQ(nmea_imu_packet_size(8), 452u);  // protocol doc 5.2, imu_zm_no_lidar.pcap
+  std::mt19937_64 rng(11);                   // fixed seed: reproducible values, any do
+  std::uniform_real_distribution<float> value(-20.0f, 20.0f);
+  NmeaImuPacket packet;
+  packet.header = test::random_header(UdpProfileLidar::kRng19Rfl8Sig16Nir16, rng);
+  packet.header.packet_type = 2;
+  packet.nmea_timestamp_ns = rng();
+  packet.nmea_sentence = "$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A";
+  for (uint16_t i = 0; i < 8; ++i) {
+    packet.measurements.push_back({rng(), static_cast<uint16_t>(31 + 32 * i), 1,
+                                   {value(rng), value(rng), value(rng)}, {value(rng), value(rng), value(rng)}});
+  }
+  for (HeaderType type : {HeaderType::kStandard, HeaderType::kFusa}) {
+    std::vector<uint8_t> bytes(nmea_imu_packet_size(8));
+    encode_nmea_imu(packet, type, bytes);
+    std::string error;
+    auto decoded = decode_nmea_imu(bytes, 8, type, &error);
+    ASSERT_TRUE(decoded) << error;
+    EXPECT_EQ(decoded->packet, packet);
+    EXPECT_EQ(decoded->footer, FooterKind::kCrc64);
+    uint64_t ts = 0;
+    std::memcpy(&ts, bytes.data() + 132, 8);  // first measurement right after the NMEA block
+    EXPECT_EQ(ts, packet.measurements[0].timestamp_ns);
+    bytes[200] ^= 1;
+    EXPECT_FALSE(decode_nmea_imu(bytes, 8, type, &error)->crc_ok);
+    EXPECT_FALSE(decode_nmea_imu(bytes, 7, type, &error));
+    EXPECT_NE(error.find("452 bytes, expected 416"), std::string::npos) << error;
+    EXPECT_FALSE(decode_nmea_imu(bytes, 0, type, &error));
+  }
+  std::vector<uint8_t> lidar(nmea_imu_packet_size(8));
+  lidar[0] = 1;
+  std::string error;
+  EXPECT_FALSE(decode_nmea_imu(lidar, 8, HeaderType::kStandard, &error));
+  EXPECT_NE(error.find("packet_type 1, expected 2"), std::string::npos) << error;
+}
+
 }  // namespace
 }  // namespace lidartwin
