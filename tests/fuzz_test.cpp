@@ -99,6 +99,18 @@ TEST(FuzzImuPacket, RandomBytesNeverCrash) {
     for (auto& b : bytes) b = static_cast<uint8_t>(rng());
     EXPECT_EQ(decode_legacy_imu(bytes).has_value(), bytes.size() == kLegacyImuPacketSize);
   }
+  for (int trial = 0; trial < 300; ++trial) {
+    const int n = static_cast<int>(rng() % 4);
+    std::vector<uint8_t> bytes(trial % 2 == 0 ? nmea_imu_packet_size(n) : rng() % 400);
+    for (auto& b : bytes) b = static_cast<uint8_t>(rng());
+    if (trial % 4 == 0 && !bytes.empty()) bytes[0] = 2;  // IMU packet_type in both header layouts
+    std::string error;
+    for (HeaderType type : {HeaderType::kStandard, HeaderType::kFusa}) {
+      if (!decode_nmea_imu(bytes, n, type, &error)) {
+        EXPECT_FALSE(error.empty());
+      }
+    }
+  }
 }
 
 }  // namespace
