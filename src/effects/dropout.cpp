@@ -30,16 +30,22 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
       {"ambient_coefficient", &P::ambient_coefficient, {0.0, 100.0}},
   }};
 
-  explicit Dropout(const P& p) : TabledEffect(p) {}
+  explicit Dropout(const P& p)
+      : TabledEffect(p),
+        sure_ratio_(std::exp(kSureX * static_cast<float>(p.width))),
+        sure_probability_(static_cast<double>(1.0f / (1.0f + std::exp(-kSureX)))) {}
 
   std::vector<std::string_view> prerequisites() const override { return {"radiometry"}; }
 
   // The same float arithmetic serves both directions, so they agree to the last bit.
+  float threshold(float near_ir) const {
+    const float base = static_cast<float>(params().threshold_photons);
+    if (params().ambient_coefficient <= 0.0) return base;
+    return base + static_cast<float>(params().ambient_coefficient) * std::sqrt(near_ir);
+  }
   float detection_probability(float signal, float near_ir) const {
     if (signal <= 0.0f) return 0.0f;
-    const float threshold = static_cast<float>(params().threshold_photons) +
-                            static_cast<float>(params().ambient_coefficient) * std::sqrt(near_ir);
-    const float x = std::log(signal / threshold) / static_cast<float>(params().width);
+    const float x = std::log(signal / threshold(near_ir)) / static_cast<float>(params().width);
     return 1.0f / (1.0f + std::exp(-x));
   }
 
@@ -49,8 +55,11 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
     for (uint32_t beam = 0; beam < measured.size(); ++beam) {
       Measurement& m = measured[beam];
       if (m.range_m == 0.0f) continue;
-      const double p = static_cast<double>(detection_probability(m.signal_photons, m.near_ir_photons));
-      if (streams(beam).uniform(0) < p) continue;
+      const double u = streams(beam).uniform(0);
+      // Strong returns (x >= 6, P_det >= 0.9975) with u below that bound are detected whatever
+      // the exact P_det: skips log and exp for most pixels; outcomes change only by float rounding.
+      const bool surely = m.signal_photons >= sure_ratio_ * threshold(m.near_ir_photons) && u < sure_probability_;
+      if (surely || u < static_cast<double>(detection_probability(m.signal_photons, m.near_ir_photons))) continue;
       m.range_m = 0.0f;
       m.signal_photons = 0.0f;
       m.reflectivity = 0.0f;
@@ -61,6 +70,11 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
     prediction.p_detect *= static_cast<double>(detection_probability(static_cast<float>(prediction.signal_photons),
                                                                      static_cast<float>(prediction.near_ir_photons)));
   }
+
+ private:
+  static constexpr float kSureX = 6.0f;
+  float sure_ratio_;          // S / S_th at x = kSureX
+  double sure_probability_;   // P_det at x = kSureX
 };
 
 }  // namespace

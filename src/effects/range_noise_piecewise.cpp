@@ -4,6 +4,8 @@
 // follow the datasheet precision table (the paper's Table I) instead of the B0 line: plateaus at
 // the table's values joined by short ramps at the bin edges (see profiles/os1-64.json).
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -64,6 +66,9 @@ class RangeNoisePiecewise final : public Effect {
     for (size_t k = 0; k + 1 < knots_.size(); ++k) {
       slopes_.push_back((knots_[k + 1].sigma_m - knots_[k].sigma_m) / (knots_[k + 1].range_m - knots_[k].range_m));
     }
+    for (uint32_t b = 0; b < first_segment_.size(); ++b) {
+      first_segment_[b] = static_cast<uint8_t>(std::min<size_t>(segment_scan(0, bucket_start(b)), 255));
+    }
   }
 
   std::string_view name() const override { return kName; }
@@ -72,9 +77,8 @@ class RangeNoisePiecewise final : public Effect {
     const double r = static_cast<double>(range_m);
     if (r <= knots_.front().range_m) return knots_.front().sigma_m;
     if (r >= knots_.back().range_m) return knots_.back().sigma_m;
-    size_t k = 1;
-    while (r > knots_[k].range_m) ++k;  // knots are few (about 8): a scan beats a search
-    return knots_[k - 1].sigma_m + slopes_[k - 1] * (r - knots_[k - 1].range_m);
+    const size_t k = segment_scan(first_segment_[bucket(range_m)], r);
+    return knots_[k].sigma_m + slopes_[k] * (r - knots_[k].range_m);
   }
 
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
@@ -115,8 +119,25 @@ class RangeNoisePiecewise final : public Effect {
   }
 
  private:
+  // Ranges in a column jump between floor, walls and sky, so a scan from the first knot would
+  // mispredict; a bucket per eighth of an octave (by the float's exponent and top 3 mantissa
+  // bits, 2^-6 to 2^10 m) remembers the segment at its start, leaving about one comparison.
+  static constexpr uint32_t kBucketShift = 23 - 3;
+  static constexpr uint32_t kMinBits = 0x3C800000u;  // 2^-6 as a float
+  static uint32_t bucket(float r) {
+    const uint32_t bits = std::bit_cast<uint32_t>(std::clamp(r, 0x1.0p-6f, 0x1.0p10f));
+    return (bits - kMinBits) >> kBucketShift;
+  }
+  static double bucket_start(uint32_t b) { return static_cast<double>(std::bit_cast<float>(kMinBits + (b << kBucketShift))); }
+  // The segment k (knot k to k+1) holding r, searching forward from `k`.
+  size_t segment_scan(size_t k, double r) const {
+    while (k + 2 < knots_.size() && r > knots_[k + 1].range_m) ++k;
+    return k;
+  }
+
   std::vector<Knot> knots_;
   std::vector<double> slopes_;
+  std::array<uint8_t, 16 * 8 + 1> first_segment_{};
 };
 
 }  // namespace

@@ -23,15 +23,21 @@ class EffectChain {
  public:
   EffectChain() = default;
   // document: [{"name": "range_noise_linear", "sigma0_m": 0.01, ...}, ...]. source names the file
-  // (and JSON path) for error messages, e.g. "profiles/os1-64.json: /effects/2/sigma_m: ...".
+  // and the JSON pointer of the array, "profiles/os1-64.json: /effects", so that errors read
+  // "profiles/os1-64.json: /effects/2/sigma0_m: must be in [0, 1], got -0.01" (a source without
+  // ": /" is taken as a file whose document is the array: "file.json: /2/sigma0_m"). Each effect
+  // gets a stream id from its name and position; an effect's prerequisites must come earlier.
   static EffectChain from_json(const nlohmann::json& document, std::string_view source);
   nlohmann::json to_json() const;
 
-  // Measurement from ideal returns, then each effect in order.
+  // Measurement from ideal returns (range = ideal range, 0 if no hit), then each effect in order.
+  // One virtual call per effect per column; effects loop over the beams.
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context, std::span<Measurement> out) const;
+  // Bias 0, variance 0, p_detect = hit ? 1 : 0, then each effect folds itself in, in order.
   Prediction predict(const IdealReturn& ideal, const ColumnContext& context) const;
 
   const std::vector<std::shared_ptr<const Effect>>& effects() const { return effects_; }
+  // Copies of `effect` placed at the end or at `index`, with that position's stream id.
   EffectChain with_effect(std::shared_ptr<const Effect> effect) const;       // appended
   EffectChain replacing(size_t index, std::shared_ptr<const Effect> effect) const;
 
