@@ -246,6 +246,13 @@ TEST_F(BadProfile, ArraysOfDifferentLengths) {
 TEST_F(BadProfile, BeamCountDisagreesWithProductLine) {
   good_["prod_line"] = "OS-1-128";
   EXPECT_EQ(error_for(good_), path() + ": /prod_line: names 128 beams but beam_intrinsics has 64");
+  for (const char* bad : {"OS-1", "OS-3-64", "VLP-16", "OS-1-64-", "OS-1-64 U"}) {
+    good_["prod_line"] = bad;
+    EXPECT_THAT(error_for(good_), HasSubstr(": /prod_line: must look like \"OS-1-64\" or \"OS-0-32-U1\"")) << bad;
+  }
+  good_["prod_line"] = "OS-1-64-AH";
+  std::ofstream(dir_ / "variant.json") << good_.dump();
+  EXPECT_EQ(load_profile((dir_ / "variant.json").string()).prod_line, "OS-1-64-AH");
 }
 
 TEST_F(BadProfile, MinRangeNotBelowMaxRange) {

@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <regex>
 
 #include "lidartwin/profile/sensor_profile.h"
 #include "profile/json_fields.h"
@@ -123,16 +122,23 @@ json read_effects(const json& value, const Location& at) {
   return value;
 }
 
-// prod_line "OS-1-64-…": the SDK takes the third field as the beam count (protocol doc 3.1).
+// prod_line "OS-<0|1|2>-<beams>[-<variant>]", e.g. "OS-0-32-U1"; the SDK takes the third field as
+// the beam count (protocol doc 3.1). Parsed by hand: std::regex trips GCC 12's sanitizer build.
 void check_prod_line(const std::string& prod_line, size_t rows, const Location& at) {
-  static const std::regex pattern(R"(^OS-(0|1|2)-(\d+)(-\w+)?$)");
-  std::smatch match;
-  if (!std::regex_match(prod_line, match, pattern)) {
-    at.fail("must look like \"OS-1-64\" or \"OS-0-32-U1\", got \"" + prod_line + "\"");
-  }
-  if (std::stoul(match[2].str()) != rows) {
-    at.fail("names " + match[2].str() + " beams but beam_intrinsics has " + std::to_string(rows));
-  }
+  const auto is_digit = [](char c) { return c >= '0' && c <= '9'; };
+  const auto is_word = [&](char c) {
+    return is_digit(c) || c == '_' || (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z');
+  };
+  size_t end = 5;
+  while (end < prod_line.size() && is_digit(prod_line[end])) ++end;
+  const bool family_ok = prod_line.size() > 5 && prod_line.starts_with("OS-") && prod_line[3] >= '0' &&
+                         prod_line[3] <= '2' && prod_line[4] == '-' && end > 5 && end - 5 <= 4;
+  const std::string variant = end < prod_line.size() ? prod_line.substr(end) : "";
+  const bool variant_ok = variant.empty() || (variant.size() > 1 && variant[0] == '-' &&
+                                              std::all_of(variant.begin() + 1, variant.end(), is_word));
+  if (!family_ok || !variant_ok) at.fail("must look like \"OS-1-64\" or \"OS-0-32-U1\", got \"" + prod_line + "\"");
+  const std::string beams = prod_line.substr(5, end - 5);
+  if (std::stoul(beams) != rows) at.fail("names " + beams + " beams but beam_intrinsics has " + std::to_string(rows));
 }
 
 }  // namespace

@@ -39,6 +39,8 @@ AccessorView view_of(const tinygltf::Model& model, int accessor_index, size_t el
   }
   const std::vector<unsigned char>& data = model.buffers[static_cast<size_t>(view.buffer)].data;
   const size_t stride = view.byteStride != 0 ? view.byteStride : element_size;
+  if (accessor.count > data.size())
+    throw InputError(where + ": " + name + " has more elements than its buffer has bytes");
   const size_t start = view.byteOffset + accessor.byteOffset;
   const size_t end = accessor.count == 0 ? start : start + (accessor.count - 1) * stride + element_size;
   if (end > view.byteOffset + view.byteLength || end > data.size()) {
