@@ -1,0 +1,156 @@
+// Acceptance: `lidartwin record --ideal` puts every point the SDK would compute from the capture on
+// a surface of the scene (within 2 mm), and drops no return the scene offers within the profile's
+// range window. Points are projected with the SDK formula (protocol doc 7.1) written in
+// support/record_capture.h independently of the caster, with the recorded ground-truth pose.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <numbers>
+#include <string>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include "lidartwin/scene/scene.h"
+#include "support/record_capture.h"
+#include "support/surface_distance.h"
+
+namespace lidartwin {
+namespace {
+
+const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
+const std::filesystem::path kHall = kSource / "scenes/calibration_hall.glb";
+constexpr double kTolerance_m = 0.002;
+
+using PoseAt = std::function<test::GroundTruthPose(double time_s)>;
+
+struct Tally {
+  size_t points = 0;
+  size_t off_surface = 0;
+  size_t dropped = 0;
+  double worst_m = 0;
+};
+
+class RecordGeometry : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("lidartwin_geometry_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  std::filesystem::path record(const std::string& name, const std::string& arguments) {
+    const auto out = dir_ / name;
+    EXPECT_EQ(test::run_lidartwin("record --ideal --scene " + kHall.string() + " --frames 2 --seed 7 --out " +
+                                  out.string() + " " + arguments),
+              0);
+    return out;
+  }
+
+  // Checks every valid pixel of every frame; min/max range of the profile for the dropped test.
+  Tally check(const std::filesystem::path& out, const PoseAt& pose_at, double min_range_m, double max_range_m) {
+    const Scene scene = Scene::load(kHall);
+    const auto beams = test::SdkIntrinsics::load(out / "metadata.json");
+    const auto capture = test::decode_capture(out);
+    EXPECT_EQ(capture.frames.size(), 2u);
+    Tally tally;
+    for (const auto& [frame_id, scan] : capture.frames) {
+      for (int m = 0; m < scan.width; ++m) {
+        EXPECT_NE(scan.status[static_cast<size_t>(m)], 0u) << "column " << m << " of frame " << frame_id;
+        const auto pose = pose_at(static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9);
+        for (int r = 0; r < scan.height; ++r) {
+          check_pixel(scene, beams, pose, m, r, scan.at(ChannelField::kRange, m, r), min_range_m, max_range_m, tally);
+        }
+      }
+    }
+    return tally;
+  }
+
+  static void check_pixel(const Scene& scene, const test::SdkIntrinsics& beams, const test::GroundTruthPose& pose,
+                          int m, int r, uint32_t range_mm, double min_range_m, double max_range_m, Tally& tally) {
+    Eigen::Vector3d direction, origin;
+    beams.lut(r, m, direction, origin);
+    const Eigen::Vector3d world_origin = pose.rotation * origin + pose.translation;
+    const Eigen::Vector3d world_direction = pose.rotation * direction;
+    if (range_mm == 0) {
+      // No return: the physical ray (from the beam origin) must meet nothing inside the window.
+      const double hit = test::first_hit(scene.embree_scene(), world_origin, world_direction,
+                                         static_cast<float>(beams.beam_offset_m()), static_cast<float>(max_range_m));
+      if (hit > min_range_m + 0.01 && hit < max_range_m - 0.01) ++tally.dropped;
+      return;
+    }
+    ++tally.points;
+    const Eigen::Vector3d p = pose.rotation * beams.point(r, m, range_mm) + pose.translation;
+    const double distance = test::distance_to_surface(scene.embree_scene(), p);
+    tally.worst_m = std::max(tally.worst_m, std::isinf(distance) ? 1.0 : distance);
+    if (distance > kTolerance_m) ++tally.off_surface;
+  }
+
+  std::filesystem::path dir_;
+};
+
+// The pose of the first row of poses.tum, for static recordings.
+PoseAt static_pose(const std::filesystem::path& out) {
+  const auto poses = test::read_poses(out / "poses.tum");
+  EXPECT_EQ(poses.size(), 2u);
+  return [pose = poses.at(0)](double) { return pose; };
+}
+
+void expect_on_surfaces(const Tally& tally, size_t pixels) {
+  EXPECT_GT(tally.points, pixels / 3) << "too few returns";
+  EXPECT_EQ(tally.off_surface, 0u) << "worst distance " << tally.worst_m << " m";
+  EXPECT_EQ(tally.dropped, 0u);
+  std::printf("%zu points, worst distance to a surface %.3f mm, %zu dropped\n", tally.points, tally.worst_m * 1e3,
+              tally.dropped);
+}
+
+const std::string kHallPose = "--trajectory " + (kSource / "scenes/calibration_hall_static.tum").string();
+
+TEST_F(RecordGeometry, Os0PointsLieOnTheHall) {
+  const auto out = record("os0", "--profile os0-64 --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 " + kHallPose);
+  expect_on_surfaces(check(out, static_pose(out), 0.3, 45.0), 2 * 1024 * 64);
+}
+
+TEST_F(RecordGeometry, Os1PointsLieOnTheHallInLegacyPackets) {
+  const auto out = record("os1", "--profile os1-64 --mode 2048x10 --udp-profile LEGACY " + kHallPose);
+  expect_on_surfaces(check(out, static_pose(out), 0.3, 100.0), 2 * 2048 * 64);
+}
+
+TEST_F(RecordGeometry, Os2PointsLieOnTheHallInDualPackets) {
+  const auto out =
+      record("os2", "--profile os2-64 --mode 512x20 --udp-profile RNG19_RFL8_SIG16_NIR16_DUAL " + kHallPose);
+  expect_on_surfaces(check(out, static_pose(out), 0.8, 200.0), 2 * 512 * 64);
+}
+
+// E11: each column is cast from the pose at its own timestamp. The flight moves 10 m/s and yaws
+// 90 deg/s, so using one pose per frame would put points up to 1 m off the walls.
+TEST_F(RecordGeometry, MovingSensorUsesEachColumnsPose) {
+  const double yaw_rate = std::numbers::pi / 2;  // rad/s
+  const Eigen::Vector3d start(-5, 1, 4), velocity(10, 0, 0.5);
+  const auto flight = dir_ / "flight.tum";
+  {
+    const Eigen::Quaterniond end_rotation(Eigen::AngleAxisd(yaw_rate * 2.0, Eigen::Vector3d::UnitZ()));
+    const Eigen::Vector3d end = start + 2.0 * velocity;
+    std::ofstream tum(flight);
+    tum << "0 " << start.x() << " " << start.y() << " " << start.z() << " 0 0 0 1\n";
+    tum.precision(17);
+    tum << "2 " << end.x() << " " << end.y() << " " << end.z() << " " << end_rotation.x() << " " << end_rotation.y()
+        << " " << end_rotation.z() << " " << end_rotation.w() << "\n";
+  }
+  const auto out = record("moving", "--profile os1-64 --mode 1024x10 --trajectory " + flight.string());
+  // Independent of the pose module: constant velocity and yaw rate (what lerp + slerp give here).
+  const PoseAt pose_at = [&](double t) {
+    return test::GroundTruthPose{t, Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rate * t, Eigen::Vector3d::UnitZ())),
+                                 start + t * velocity};
+  };
+  expect_on_surfaces(check(out, pose_at, 0.3, 100.0), 2 * 1024 * 64);
+  const auto poses = test::read_poses(out / "poses.tum");  // ground truth at each frame's column 0
+  ASSERT_EQ(poses.size(), 2u);
+  EXPECT_NEAR((poses[1].translation - pose_at(0.1).translation).norm(), 0.0, 1e-6);
+  EXPECT_NEAR(poses[1].rotation.angularDistance(pose_at(0.1).rotation), 0.0, 1e-6);
+}
+
+}  // namespace
+}  // namespace lidartwin

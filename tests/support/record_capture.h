@@ -1,0 +1,127 @@
+#pragma once
+// For the `lidartwin record` acceptance tests: run the binary, decode what it wrote, and the SDK's
+// XYZ projection (protocol doc 7.1) transcribed independently of the caster.
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <sys/wait.h>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "lidartwin/metadata/metadata.h"
+#include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/pcap/pcap.h"
+
+namespace lidartwin::test {
+
+// Runs `lidartwin <arguments>`, returns its exit code.
+inline int run_lidartwin(const std::string& arguments) {
+  const std::string command = std::string(LIDARTWIN_BINARY) + " " + arguments;
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The beam intrinsics read straight from metadata.json's nested sections (3.1).
+struct SdkIntrinsics {
+  std::vector<double> altitude_deg, azimuth_deg;
+  std::array<double, 16> beam_to_lidar{}, lidar_to_sensor{};
+  int columns = 0;
+
+  static SdkIntrinsics load(const std::filesystem::path& metadata_json) {
+    std::ifstream in(metadata_json);
+    const auto doc = nlohmann::json::parse(in);
+    SdkIntrinsics s;
+    const auto& bi = doc.at("beam_intrinsics");
+    s.altitude_deg = bi.at("beam_altitude_angles").get<std::vector<double>>();
+    s.azimuth_deg = bi.at("beam_azimuth_angles").get<std::vector<double>>();
+    s.beam_to_lidar = bi.at("beam_to_lidar_transform").get<std::array<double, 16>>();
+    s.lidar_to_sensor = doc.at("lidar_intrinsics").at("lidar_to_sensor_transform").get<std::array<double, 16>>();
+    s.columns = doc.at("lidar_data_format").at("columns_per_frame").get<int>();
+    return s;
+  }
+
+  // 7.1: unit vector u and offset o (mm, lidar frame), both through lidar_to_sensor.
+  void lut(int row, int col, Eigen::Vector3d& direction, Eigen::Vector3d& offset_m) const {
+    const double pi = std::numbers::pi;
+    const double encoder = 2 * pi - col * 2 * pi / columns;
+    const double azimuth = -azimuth_deg[static_cast<size_t>(row)] * pi / 180;
+    const double altitude = altitude_deg[static_cast<size_t>(row)] * pi / 180;
+    const auto& B = beam_to_lidar;
+    const double n = B[11] == 0 ? B[3] : std::hypot(B[3], B[11]);
+    const Eigen::Vector3d u(std::cos(encoder + azimuth) * std::cos(altitude),
+                            std::sin(encoder + azimuth) * std::cos(altitude), std::sin(altitude));
+    const Eigen::Vector3d o(B[3] * std::cos(encoder) - n * u.x(), B[3] * std::sin(encoder) - n * u.y(), B[11] - n * u.z());
+    const auto& T = lidar_to_sensor;
+    Eigen::Matrix3d R;
+    R << T[0], T[1], T[2], T[4], T[5], T[6], T[8], T[9], T[10];
+    direction = R * u;
+    offset_m = 0.001 * (R * o + Eigen::Vector3d(T[3], T[7], T[11]));
+  }
+  Eigen::Vector3d point(int row, int col, double range_mm) const {
+    Eigen::Vector3d d, o;
+    lut(row, col, d, o);
+    return range_mm * 0.001 * d + o;
+  }
+  double beam_offset_m() const {
+    const auto& B = beam_to_lidar;
+    return 0.001 * (B[11] == 0 ? B[3] : std::hypot(B[3], B[11]));
+  }
+};
+
+// Every frame of a capture's lidar packets (port 7502), decoded with the metadata it came with.
+struct DecodedCapture {
+  Metadata metadata;
+  std::map<uint32_t, Scan> frames;  // by frame_id
+  size_t lidar_packets = 0;
+  size_t imu_packets = 0;
+};
+
+inline DecodedCapture decode_capture(const std::filesystem::path& dir) {
+  DecodedCapture capture;
+  capture.metadata = load_metadata(dir / "metadata.json");
+  const PacketFormat format(capture.metadata.format);
+  Scan probe(capture.metadata.format);  // first pass: which frame the packet belongs to
+  for (const UdpDatagram& datagram : read_pcap(dir / "capture.pcap")) {
+    if (datagram.dst_port == 7503) ++capture.imu_packets;
+    if (datagram.dst_port != 7502) continue;
+    ++capture.lidar_packets;
+    std::string error;
+    const auto decoded = format.decode(datagram.payload, probe, &error);
+    if (!decoded) throw std::runtime_error("undecodable packet: " + error);
+    auto [it, fresh] = capture.frames.try_emplace(decoded->header.frame_id, capture.metadata.format);
+    format.decode(datagram.payload, it->second, &error);
+  }
+  return capture;
+}
+
+// poses.tum rows (t, pose), read without the pose module.
+struct GroundTruthPose {
+  double time_s;
+  Eigen::Quaterniond rotation;
+  Eigen::Vector3d translation;
+};
+inline std::vector<GroundTruthPose> read_poses(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::vector<GroundTruthPose> poses;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream row(line);
+    double t, x, y, z, qx, qy, qz, qw;
+    row >> t >> x >> y >> z >> qx >> qy >> qz >> qw;
+    poses.push_back({t, Eigen::Quaterniond(qw, qx, qy, qz).normalized(), Eigen::Vector3d(x, y, z)});
+  }
+  return poses;
+}
+
+}  // namespace lidartwin::test
