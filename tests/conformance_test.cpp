@@ -2,6 +2,7 @@
 // (tests/data/ouster-samples, see its README) is decoded with its metadata and encoded again from
 // the decoded scan, header and footer kind, and must come out byte for byte identical.
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <filesystem>
 #include <ostream>
@@ -12,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "lidartwin/metadata/metadata.h"
+#include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/pcap/pcap.h"
 
@@ -147,6 +149,51 @@ std::string sample_name(const testing::TestParamInfo<Sample>& info) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Samples, Conformance, testing::ValuesIn(kSamplesTable), sample_name);
+
+// Every 48-byte datagram on an IMU port of the LEGACY-IMU samples (protocol doc 5.1).
+TEST(ImuConformance, LegacyPacketsReencodeByteExactly) {
+  int packets = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kSamples)) {
+    if (entry.path().extension() != ".pcap") continue;
+    for (const UdpDatagram& d : read_pcap(entry.path())) {
+      if (d.payload.size() != kLegacyImuPacketSize) continue;
+      const auto sample = decode_legacy_imu(d.payload);
+      ASSERT_TRUE(sample) << entry.path();
+      std::array<uint8_t, kLegacyImuPacketSize> encoded{};
+      encode_legacy_imu(*sample, encoded);
+      ASSERT_TRUE(std::equal(encoded.begin(), encoded.end(), d.payload.begin())) << entry.path();
+      ++packets;
+    }
+  }
+  // README: 10 + 10 + 2 + 30 + 11 + 10 + 10 + 10 + 10 in the single-sensor captures (OS-0-128-U1,
+  // OS-0-32-U1, OS-1-128 FUSA, OS-1-128 lb_n3, OS-1-64 fw20, OS-2-128-U1, crc_test, windowed 1
+  // and 2), 2 + 2 in same_ports and same_ports_nonlegacy.
+  EXPECT_EQ(packets, 107);
+}
+
+// imu_zm_no_lidar.pcap: FW 3.2, 8 IMU packets of 8 measurements on port 7513 with valid CRCs;
+// measurement ids every W/64 = 32 columns starting at 31 (protocol doc 5.2).
+TEST(ImuConformance, NmeaPacketsReencodeByteExactly) {
+  const Metadata metadata = load_metadata(kSamples / "imu_zm_no_lidar_0.json");
+  const int n = metadata.format.imu_measurements_per_packet;
+  ASSERT_EQ(n, 8);
+  int packets = 0;
+  for (const UdpDatagram& d : read_pcap(kSamples / "imu_zm_no_lidar.pcap")) {
+    if (d.dst_port != 7513) continue;
+    std::string error;
+    const auto decoded = decode_nmea_imu(d.payload, n, metadata.format.header_type, &error);
+    ASSERT_TRUE(decoded) << error;
+    EXPECT_EQ(decoded->footer, FooterKind::kCrc64);
+    EXPECT_EQ(decoded->packet.header.init_id, metadata.sensor_info.initialization_id);
+    EXPECT_EQ(decoded->packet.measurements[0].measurement_id % 32, 31);
+    EXPECT_NEAR(decoded->packet.measurements[0].accel_m_s2[2], 9.8, 0.5);  // at rest, z up
+    std::vector<uint8_t> encoded(d.payload.size());
+    encode_nmea_imu(decoded->packet, metadata.format.header_type, encoded, decoded->footer);
+    ASSERT_EQ(encoded, d.payload) << "packet " << packets;
+    ++packets;
+  }
+  EXPECT_EQ(packets, 8);
+}
 
 }  // namespace
 }  // namespace lidartwin
