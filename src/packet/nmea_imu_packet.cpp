@@ -24,7 +24,6 @@ constexpr size_t kNmeaSentenceOffset = kHeaderBytes + 8;
 constexpr size_t kMeasurementsOffset = kHeaderBytes + kNmeaBlockBytes;
 constexpr size_t kMeasurementBytes = 36;
 constexpr size_t kFooterBytes = 32;
-constexpr int kMaxMeasurements = 1816;  // keeps the packet within a 65535-byte datagram
 
 enum class ImuField : uint8_t { kTimestamp, kMeasurementId, kStatus, kAx, kAy, kAz, kGx, kGy, kGz };
 struct ImuFieldSpec {
@@ -109,8 +108,8 @@ void encode_nmea_imu(const NmeaImuPacket& packet, HeaderType header_type, std::s
 
 std::optional<DecodedNmeaImu> decode_nmea_imu(std::span<const uint8_t> bytes, int measurements_per_packet,
                                               HeaderType header_type, std::string* error) {
-  if (measurements_per_packet < 1 || measurements_per_packet > kMaxMeasurements) {
-    return failure(error, "imu_measurements_per_packet must be 1.." + std::to_string(kMaxMeasurements) + ", got " +
+  if (measurements_per_packet < 1 || measurements_per_packet > kMaxImuMeasurementsPerPacket) {
+    return failure(error, "imu_measurements_per_packet must be 1.." + std::to_string(kMaxImuMeasurementsPerPacket) + ", got " +
                               std::to_string(measurements_per_packet));
   }
   const size_t expected = nmea_imu_packet_size(measurements_per_packet);

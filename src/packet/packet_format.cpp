@@ -3,6 +3,7 @@
 #include <string>
 
 #include "lidartwin/error.h"
+#include "lidartwin/packet/imu_packet.h"
 #include "packet/packet_format_impl.h"
 
 namespace lidartwin {
@@ -46,12 +47,15 @@ void validate_shape(const LidarDataFormat& f) {
 // Protocol doc 5.1 and 5.2.
 size_t imu_size(const LidarDataFormat& f) {
   switch (f.udp_profile_imu) {
-    case UdpProfileImu::kLegacy: return 48;
+    case UdpProfileImu::kLegacy: return kLegacyImuPacketSize;
     case UdpProfileImu::kOff: return 0;
     case UdpProfileImu::kAccel32Gyro32Nmea: {
       const int n = f.imu_measurements_per_packet;
-      if (n < 1 || n > 1816) fail("imu_measurements_per_packet", "1..1816 for ACCEL32_GYRO32_NMEA", n);
-      return 32 + 100 + static_cast<size_t>(n) * 36 + 32;
+      if (n < 1 || n > kMaxImuMeasurementsPerPacket) {
+        fail("imu_measurements_per_packet",
+             "1.." + std::to_string(kMaxImuMeasurementsPerPacket) + " for ACCEL32_GYRO32_NMEA", n);
+      }
+      return nmea_imu_packet_size(n);
     }
   }
   return 0;

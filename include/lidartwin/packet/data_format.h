@@ -74,6 +74,8 @@ struct LidarDataFormat {
 };
 
 // Protocol doc 6.4: FW's azimuth_window [start, end] (millidegrees) -> column_window [c0, c1].
+// Preconditions (asserted; validate config input first): 0 <= start, end <= 360000, columns > 0.
+// A window covering every column comes back as [0, columns - 1].
 std::array<int, 2> column_window_from_azimuth_window(int start_mdeg, int end_mdeg, int columns);
 // Whether measurement id m lies inside the (possibly wrapping) window.
 bool column_in_window(const std::array<int, 2>& window, int m);

@@ -38,6 +38,8 @@ struct ImuMeasurement {
 };
 
 inline constexpr size_t kNmeaSentenceBytes = 85;
+// The most measurements that keep a packet within one 65535-byte datagram.
+inline constexpr int kMaxImuMeasurementsPerPacket = 1816;
 
 struct NmeaImuPacket {
   PacketHeader header{.packet_type = 2};
