@@ -43,10 +43,10 @@ std::vector<Target> target_list() {
   return t;
 }
 
-// Board size: 3° × 8° far away (several beams and columns of a 512-column OS0/OS1-32), a
+// Board size: 3° × 12° far away (4 columns × 4 beams of the 512-column paper OS0-32), a
 // fixed-plus-proportional size near by.
 Eigen::Vector2d board_size(double range_m) {
-  if (range_m >= 16.0) return {0.052 * range_m, 0.14 * range_m};
+  if (range_m >= 16.0) return {0.052 * range_m, 0.21 * range_m};
   return {0.3 + 0.08 * range_m, 0.3 + 0.1 * range_m};
 }
 
@@ -110,8 +110,8 @@ void place(std::vector<Target>& targets) {
 }
 
 // A 3 cm board whose front face passes through the point at its nominal range, facing the sensor,
-// turned by its incidence angle about its own vertical axis; far boards reach down to the floor,
-// clipped 0.1 m above it.
+// turned by its incidence angle about its own vertical axis; far boards are clipped 0.1 m above
+// the floor and 0.2 m below the ceiling.
 Mesh board(const Target& t, const V& sensor) {
   const Eigen::Vector2d size = board_size(t.range_m);
   const V dir(static_cast<float>(std::cos(t.elevation_deg * kDeg) * std::cos(t.azimuth_deg * kDeg)),
@@ -125,9 +125,11 @@ Mesh board(const Target& t, const V& sensor) {
   axes << right, up, normal;
   const float half_h = static_cast<float>(size.y() / 2);
   const float down = std::min(half_h, centre.z() - 0.1f);
+  const float up_extent = std::min(half_h, static_cast<float>(kHeight) - 0.2f - centre.z());
   Mesh mesh;
-  mesh.append(box({-static_cast<float>(size.x() / 2), -down, -0.03f}, {static_cast<float>(size.x() / 2), half_h, 0.0f}),
-              Eigen::Translation3f(centre) * Eigen::Affine3f(axes));
+  mesh.append(
+      box({-static_cast<float>(size.x() / 2), -down, -0.03f}, {static_cast<float>(size.x() / 2), up_extent, 0.0f}),
+      Eigen::Translation3f(centre) * Eigen::Affine3f(axes));
   return mesh;
 }
 
