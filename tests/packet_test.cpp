@@ -23,64 +23,6 @@ using test::kExpectedFields;
 using test::kProfiles;
 using test::make_format;
 
-// CRC-64/XZ one bit at a time, straight from its definition (protocol doc 4.5).
-uint64_t crc64_bitwise(std::span<const uint8_t> bytes) {
-  uint64_t crc = ~uint64_t{0};
-  for (uint8_t b : bytes) {
-    crc ^= b;
-    for (int i = 0; i < 8; ++i) crc = (crc & 1) ? (crc >> 1) ^ 0xC96C5795D7870F42ull : crc >> 1;
-  }
-  return ~crc;
-}
-
-// A zero packet whose first bytes are the given header bytes, decoded.
-PacketHeader decode_header(UdpProfileLidar profile, const std::string& header_hex) {
-  const LidarDataFormat f = make_format(profile, 128, 16, 1024);
-  const PacketFormat format(f);
-  std::vector<uint8_t> packet(format.lidar_packet_size());
-  const auto header = test::from_hex(header_hex);
-  std::copy(header.begin(), header.end(), packet.begin());
-  Scan scan(f);
-  std::string error;
-  const auto decoded = format.decode(packet, scan, &error);
-  EXPECT_TRUE(decoded) << error;
-  return decoded ? decoded->header : PacketHeader{};
-}
-
-void expect_scans_equal(const Scan& a, const Scan& b, const std::string& what) {
-  for (size_t f = 0; f < a.channels.size(); ++f) {
-    EXPECT_EQ(a.channels[f], b.channels[f]) << what << " " << to_string(static_cast<ChannelField>(f));
-  }
-  EXPECT_EQ(a.timestamp_ns, b.timestamp_ns) << what;
-  EXPECT_EQ(a.status, b.status) << what;
-}
-
-// Encodes every packet of a random frame, decodes them into a fresh scan, requires equality.
-void expect_round_trip(const PacketFormat& format, UdpProfileLidar profile, std::mt19937_64& rng) {
-  const LidarDataFormat& f = format.format();
-  const std::string what = std::string(to_string(profile)) + " H=" + std::to_string(f.pixels_per_column) +
-                           " cpp=" + std::to_string(f.columns_per_packet);
-  Scan scan(f);
-  test::fill_random(scan, profile, rng);
-  Scan decoded(f);
-  std::vector<uint8_t> packet(format.lidar_packet_size());
-  for (int first = 0; first < f.columns_per_frame; first += f.columns_per_packet) {
-    const PacketHeader header = test::random_header(profile, rng);
-    format.encode(header, scan, first, packet);
-    std::string error;
-    const auto result = format.decode(packet, decoded, &error);
-    ASSERT_TRUE(result) << what << ": " << error;
-    ASSERT_EQ(result->header, header) << what;
-    ASSERT_EQ(result->first_measurement_id, first) << what;
-    ASSERT_EQ(result->footer, test::legacy(profile) ? FooterKind::kNone : FooterKind::kCrc64) << what;
-    ASSERT_TRUE(result->crc_ok) << what;
-  }
-  expect_scans_equal(scan, decoded, what);
-  EXPECT_TRUE(std::all_of(decoded.packet_received.begin(), decoded.packet_received.end(),
-                          [](uint64_t n) { return n == 1; }))
-      << what;
-}
-
 // Protocol doc 4.1, packet bytes with columns_per_packet = 16, for H = 16, 32, 64, 128.
 struct ExpectedSizes {
   UdpProfileLidar profile;
@@ -234,7 +176,7 @@ TEST(Packet, RoundTripsEveryProfileRandomized) {
           continue;
         }
         ASSERT_EQ(format->lidar_packet_size(), test::doc_packet_size(profile, height, cpp));
-        expect_round_trip(*format, profile, rng);
+        test::expect_round_trip(*format, profile, rng);
       }
     }
   }
@@ -250,7 +192,7 @@ TEST(Crc64, CheckValueAndBitwiseReference) {
   for (size_t start = 0; start < 8; ++start) {
     for (size_t length = 0; length + start <= data.size(); length += 7) {
       const std::span<const uint8_t> bytes(data.data() + start, length);
-      ASSERT_EQ(crc64_xz(bytes), crc64_bitwise(bytes)) << "start " << start << " length " << length;
+      ASSERT_EQ(crc64_xz(bytes), test::crc64_bitwise(bytes)) << "start " << start << " length " << length;
     }
   }
 }
@@ -356,13 +298,13 @@ TEST(Packet, RejectsNonLidarPacketTypeAndSkipsMeasurementIdsPastWidth) {
 // Header bytes of real packets; the expected values are the captures' metadata (init_id, prod_sn)
 // and protocol doc 4.3 (shot_limiting_test.pcap: countdown 5, thermal and shot limiting 1).
 TEST(Packet, DecodesRealHeaderBytes) {
-  const auto fusa = decode_header(UdpProfileLidar::kFusaRng15Rfl8Nir8Dual,
+  const auto fusa = test::decode_header(UdpProfileLidar::kFusaRng15Rfl8Nir8Dual,
                                         "01bcf305e50000008c0000a5ee6d761c");  // OS-1-128_767798045 FUSA
   EXPECT_EQ(fusa.init_id, 390076u);
   EXPECT_EQ(fusa.frame_id, 229u);
   EXPECT_EQ(fusa.alert_flags, 0x8c);
   EXPECT_EQ(fusa.prod_sn, 122246000293u);
-  const auto standard = decode_header(UdpProfileLidar::kRng19Rfl8Sig16Nir16,
+  const auto standard = test::decode_header(UdpProfileLidar::kRng19Rfl8Sig16Nir16,
                                             "01001825368ee6dd5df77f1c980000000500010100");
   EXPECT_EQ(standard.frame_id, 9496u);
   EXPECT_EQ(standard.init_id, 15109686u);

@@ -1,12 +1,16 @@
 #pragma once
 // Shared by packet_test, fuzz_test and conformance_test: the per-profile field table typed in again
-// from protocol doc 4.2/4.6 (independent of src/packet/field_table.cpp), and random scan filling.
+// from protocol doc 4.2/4.6 (independent of src/packet/field_table.cpp), random scan filling, a
+// bitwise CRC and the round-trip check.
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <random>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "lidartwin/packet/data_format.h"
 #include "lidartwin/packet/lidar_packet.h"
@@ -150,6 +154,64 @@ inline PacketHeader random_header(UdpProfileLidar profile, std::mt19937_64& rng)
   h.thermal_shutdown = static_cast<uint8_t>(random_bits(rng, 4));
   h.shot_limiting = static_cast<uint8_t>(random_bits(rng, 4));
   return h;
+}
+
+// CRC-64/XZ one bit at a time, straight from its definition (protocol doc 4.5).
+inline uint64_t crc64_bitwise(std::span<const uint8_t> bytes) {
+  uint64_t crc = ~uint64_t{0};
+  for (uint8_t b : bytes) {
+    crc ^= b;
+    for (int i = 0; i < 8; ++i) crc = (crc & 1) ? (crc >> 1) ^ 0xC96C5795D7870F42ull : crc >> 1;
+  }
+  return ~crc;
+}
+
+// A zero packet whose first bytes are the given header bytes, decoded.
+inline PacketHeader decode_header(UdpProfileLidar profile, const std::string& header_hex) {
+  const LidarDataFormat f = make_format(profile, 128, 16, 1024);
+  const PacketFormat format(f);
+  std::vector<uint8_t> packet(format.lidar_packet_size());
+  const auto header = from_hex(header_hex);
+  std::copy(header.begin(), header.end(), packet.begin());
+  Scan scan(f);
+  std::string error;
+  const auto decoded = format.decode(packet, scan, &error);
+  EXPECT_TRUE(decoded) << error;
+  return decoded ? decoded->header : PacketHeader{};
+}
+
+inline void expect_scans_equal(const Scan& a, const Scan& b, const std::string& what) {
+  for (size_t f = 0; f < a.channels.size(); ++f) {
+    EXPECT_EQ(a.channels[f], b.channels[f]) << what << " " << to_string(static_cast<ChannelField>(f));
+  }
+  EXPECT_EQ(a.timestamp_ns, b.timestamp_ns) << what;
+  EXPECT_EQ(a.status, b.status) << what;
+}
+
+// Encodes every packet of a random frame, decodes them into a fresh scan, requires equality.
+inline void expect_round_trip(const PacketFormat& format, UdpProfileLidar profile, std::mt19937_64& rng) {
+  const LidarDataFormat& f = format.format();
+  const std::string what = std::string(to_string(profile)) + " H=" + std::to_string(f.pixels_per_column) +
+                           " cpp=" + std::to_string(f.columns_per_packet);
+  Scan scan(f);
+  fill_random(scan, profile, rng);
+  Scan decoded(f);
+  std::vector<uint8_t> packet(format.lidar_packet_size());
+  for (int first = 0; first < f.columns_per_frame; first += f.columns_per_packet) {
+    const PacketHeader header = random_header(profile, rng);
+    format.encode(header, scan, first, packet);
+    std::string error;
+    const auto result = format.decode(packet, decoded, &error);
+    ASSERT_TRUE(result) << what << ": " << error;
+    ASSERT_EQ(result->header, header) << what;
+    ASSERT_EQ(result->first_measurement_id, first) << what;
+    ASSERT_EQ(result->footer, legacy(profile) ? FooterKind::kNone : FooterKind::kCrc64) << what;
+    ASSERT_TRUE(result->crc_ok) << what;
+  }
+  expect_scans_equal(scan, decoded, what);
+  EXPECT_TRUE(std::all_of(decoded.packet_received.begin(), decoded.packet_received.end(),
+                          [](uint64_t n) { return n == 1; }))
+      << what;
 }
 
 }  // namespace lidartwin::test
