@@ -4,6 +4,8 @@
 #include <csignal>
 #include <iostream>
 
+#include <pthread.h>
+#include <sched.h>
 #include <sys/prctl.h>
 
 #include <asio.hpp>
@@ -57,6 +59,15 @@ int run_daemon(asio::io_context& io, Sensor& sensor, HttpServer& http, Streamer&
   return 0;
 }
 
+// The send clock on a busy host (protocol doc 1 item 12): as SCHED_FIFO it preempts casting and
+// everything else the moment a deadline comes. Needs root or CAP_SYS_NICE; without it, casting
+// runs niced instead. The HTTP threads, started before, keep the normal policy.
+bool raise_send_clock_priority() {
+  sched_param param{};
+  param.sched_priority = 10;
+  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
+}
+
 Sensor make_sensor(const ServeFlags& flags, const SensorProfile& profile, const std::array<uint8_t, 4>& address) {
   SensorOptions options;
   options.state_file = flags.state_file;
@@ -94,6 +105,9 @@ int serve(const ServeFlags& flags) {
 
   asio::io_context io;
   StreamerOptions options;
+  const bool realtime = raise_send_clock_priority();
+  options.render_nice = realtime ? 0 : 5;
+  spdlog::info("serve: send clock runs {}", realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
   options.source_address = address;
   options.render.seed = flags.seed;
   options.render.threads = flags.threads;

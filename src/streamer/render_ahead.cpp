@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <pthread.h>
+#include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -15,7 +17,14 @@ namespace {
 // Columns cast per render call: small enough that the first packets of a frame are ready long
 // before the frame is done, large enough to keep the renderer's pool busy.
 constexpr int kColumnsPerChunk = 128;
-constexpr int kWorkerNice = 10;
+
+// Threads inherit the scheduling policy of their creator: the io thread may run the send clock as
+// SCHED_FIFO, which the worker and the renderer's pool (created from the worker) must not.
+void lower_priority(int nice) {
+  const sched_param normal{};
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);  // per thread on Linux
+}
 
 // Runs of consecutive packets (a wrapping window has two), cut into chunks.
 std::vector<std::pair<size_t, size_t>> plan_chunks(const std::vector<int>& firsts, int columns_per_packet) {
@@ -34,12 +43,13 @@ std::vector<std::pair<size_t, size_t>> plan_chunks(const std::vector<int>& first
 }  // namespace
 
 RenderAhead::RenderAhead(RendererFactory make_renderer, PacketFormat format, const Trajectory& trajectory,
-                         SessionTiming timing, PacketHeader header, int frames_ahead)
+                         SessionTiming timing, PacketHeader header, int frames_ahead, int worker_nice)
     : make_renderer_(std::move(make_renderer)),
       format_(std::move(format)),
       trajectory_(trajectory),
       timing_(timing),
       header_(header),
+      worker_nice_(worker_nice),
       firsts_(packets_to_send(format_.format())),
       chunks_(plan_chunks(firsts_, format_.format().columns_per_packet)) {
   for (int i = 0; i <= std::max(1, frames_ahead); ++i) {
@@ -90,8 +100,7 @@ bool RenderAhead::wait_for_room(uint64_t& frame) {
 void RenderAhead::run() {
   uint64_t frame = 0;
   try {
-    // Per-thread nice value on Linux; threads created from here inherit it.
-    setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kWorkerNice);
+    lower_priority(worker_nice_);
     renderer_ = make_renderer_();
     while (wait_for_room(frame)) {
       const int64_t began = steady_now_ns();

@@ -28,8 +28,9 @@ class RenderAhead {
   // header carries init_id and prod_sn; frame_id is set per frame. trajectory must outlive this.
   // The renderer is built on the worker thread after it lowers its priority, so the renderer's own
   // pool inherits that priority and the send clock wins the CPU when a deadline comes.
+  // worker_nice: the worker's nice value (it also leaves any real-time policy it inherited).
   RenderAhead(RendererFactory make_renderer, PacketFormat format, const Trajectory& trajectory,
-              SessionTiming timing, PacketHeader header, int frames_ahead);
+              SessionTiming timing, PacketHeader header, int frames_ahead, int worker_nice);
   ~RenderAhead();  // stops the worker and joins it
   RenderAhead(const RenderAhead&) = delete;
   RenderAhead& operator=(const RenderAhead&) = delete;
@@ -64,6 +65,7 @@ class RenderAhead {
   const Trajectory& trajectory_;
   SessionTiming timing_;
   PacketHeader header_;
+  int worker_nice_ = 0;
   std::vector<int> firsts_;
   std::vector<std::pair<size_t, size_t>> chunks_;  // packet index ranges cast in one render call
   std::vector<std::unique_ptr<Slot>> slots_;

@@ -118,7 +118,7 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
     header.init_id = config->init_id;
     header.prod_sn = config->prod_sn;
     render = std::make_unique<RenderAhead>(make_renderer, packet_format, trajectory_, timing, header,
-                                           options_.frames_ahead);
+                                           options_.frames_ahead, options_.render_nice);
     spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
                  to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
                  render->packet_columns().size(), packet_format.lidar_packet_size(),

@@ -31,6 +31,7 @@ struct StreamerOptions {
   std::filesystem::path record_dir;    // non-empty: capture.pcap + metadata.json of what is sent
   int frames_ahead = 2;                // how far casting may run ahead of the send clock
   double start_delay_s = 0.15;         // from a reinit to frame 0: time to cast the first packets
+  int render_nice = 0;                 // nice value of the casting threads (the send clock keeps 0)
 };
 
 // Column timestamps (6.3): TIME_FROM_INTERNAL_OSC and TIME_FROM_SYNC_PULSE_IN carry the host's
