@@ -51,9 +51,12 @@ struct FieldCodec {
   // Bits below the step (an RNG15 range that is not a multiple of 8 mm) are truncated, as the
   // packet cannot carry them.
   void set(std::span<uint8_t> buf, uint64_t value) const {
-    assert(from_word(to_word(value) & mask) == (value & ~(step() - 1)));
+    assert(fits(value));
     store(buf, (load(buf) & ~mask) | place(value));
   }
+
+  // Whether value survives the field apart from the bits below its step.
+  bool fits(uint64_t value) const { return extract(place(value)) == (value & ~(step() - 1)); }
 
   // The field's value from the little-endian word at offset, and back.
   uint64_t extract(uint64_t word) const { return from_word(word & mask); }

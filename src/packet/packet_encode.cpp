@@ -43,7 +43,10 @@ void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& v
     const packet_detail::FieldCodec codec = impl.channels[k].codec;
     const size_t w = codec.offset / 8;
     const uint32_t* v = values[k];
-    for (size_t row = 0; row < height; ++row) words[row][w] |= codec.place(v[row]);
+    for (size_t row = 0; row < height; ++row) {
+      assert(codec.fits(v[row]) && "channel value wider than its packet field");
+      words[row][w] |= codec.place(v[row]);
+    }
   }
   for (size_t row = 0; row < height; ++row) std::memcpy(pixels + row * kPixelBytes, words[row].data(), kPixelBytes);
 }
