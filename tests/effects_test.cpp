@@ -101,8 +101,8 @@ Moments truncated(double mu, double sigma, double a, double b) {
 
 // Checks a sample against a predicted mean, sd and detection probability with tolerances of
 // `z` standard errors (plus `extra_sd_rel` for approximations such as Sheppard's correction).
-void expect_agreement(const Sample& s, double mean, double sd, double p_detect, const std::string& what,
-                      double z = 5.0, double extra_sd_rel = 0.0) {
+void expect_agreement(const Sample& s, double mean, double sd, double p_detect, const std::string& what, double z = 5.0,
+                      double extra_sd_rel = 0.0) {
   const double k = static_cast<double>(s.detected);
   const double n = static_cast<double>(s.n);
   const double rate_se = std::sqrt(std::max(p_detect * (1.0 - p_detect), 1.0 / n) / n);
@@ -127,8 +127,10 @@ std::string label(const char* effect, double r) {
   return buffer;
 }
 
-const json kLinearOs0 = {{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.10}, {"range_max_m", 45.0}};
-const json kLinearOs1 = {{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.15}, {"range_max_m", 100.0}};
+const json kLinearOs0 = {
+    {"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.10}, {"range_max_m", 45.0}};
+const json kLinearOs1 = {
+    {"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.15}, {"range_max_m", 100.0}};
 // The datasheet knot sets of profiles/os0-*.json and os1-*.json: plateaus at Table I's values
 // joined by ramps over +-2 % of each bin edge.
 const json kKnotsOs0 = json::parse(
@@ -189,10 +191,12 @@ TEST(EffectsRandom, ZigguratIsStandardNormal) {
 // ---- range_noise_linear (E1a, B0) ----
 
 TEST(RangeNoiseLinear, SigmaIsThePapersLine) {
-  for (const auto& [effect, s0, smax, rmax] : {std::tuple{kLinearOs0, 0.01, 0.10, 45.0}, std::tuple{kLinearOs1, 0.01, 0.15, 100.0}}) {
+  for (const auto& [effect, s0, smax, rmax] :
+       {std::tuple{kLinearOs0, 0.01, 0.10, 45.0}, std::tuple{kLinearOs1, 0.01, 0.15, 100.0}}) {
     const EffectChain chain = chain_of(json::array({effect}));
     for (const double r : {0.3, 1.0, 10.0, 22.5, 45.0, 100.0, 150.0}) {  // 150: extrapolated beyond r_max
-      EXPECT_NEAR(predicted_sd(chain, static_cast<float>(r)), s0 + (smax - s0) * static_cast<double>(static_cast<float>(r)) / rmax, 1e-9)
+      EXPECT_NEAR(predicted_sd(chain, static_cast<float>(r)),
+                  s0 + (smax - s0) * static_cast<double>(static_cast<float>(r)) / rmax, 1e-9)
           << "r = " << r;
     }
   }
@@ -205,8 +209,8 @@ TEST(RangeNoiseLinear, SamplesMatchPrediction) {
   const EffectChain chain = chain_of(json::array({kLinearOs1}));
   for (const float r : {0.5f, 5.0f, 20.0f, 45.0f, 80.0f, 120.0f}) {
     const Prediction p = chain.predict(surface(r), {});
-    expect_agreement(sample(chain, surface(r), 64 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2), p.p_detect,
-                     label("range_noise_linear", r));
+    expect_agreement(sample(chain, surface(r), 64 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2),
+                     p.p_detect, label("range_noise_linear", r));
   }
 }
 
@@ -222,7 +226,8 @@ TEST(RangeNoisePiecewise, PassesThroughKnotsAndIsConstantBeyond) {
     EXPECT_DOUBLE_EQ(predicted_sd(chain, 400.0f), knots.back()[1].get<double>());
     // Linear between knots: a ramp's midpoint is the mean of its ends.
     const double r = 0.5 * (knots[1][0].get<double>() + knots[2][0].get<double>());
-    EXPECT_NEAR(predicted_sd(chain, static_cast<float>(r)), 0.5 * (knots[1][1].get<double>() + knots[2][1].get<double>()), 1e-6);
+    EXPECT_NEAR(predicted_sd(chain, static_cast<float>(r)),
+                0.5 * (knots[1][1].get<double>() + knots[2][1].get<double>()), 1e-6);
   }
 }
 
@@ -250,16 +255,18 @@ TEST(RangeNoisePiecewise, SamplesMatchPrediction) {
   const EffectChain chain = chain_of(json::array({piecewise(kKnotsOs0)}));
   for (const float r : {0.5f, 1.0f, 5.0f, 12.0f, 15.0f, 30.0f, 60.0f}) {
     const Prediction p = chain.predict(surface(r), {});
-    expect_agreement(sample(chain, surface(r), 64 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2), p.p_detect,
-                     label("range_noise_piecewise", r));
+    expect_agreement(sample(chain, surface(r), 64 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2),
+                     p.p_detect, label("range_noise_piecewise", r));
   }
 }
 
 // ---- range_limits (E5 range part, E16) ----
 
 TEST(RangeLimits, NoReturnRateAndTruncatedMomentsMatchPrediction) {
-  const json sigma5cm = {{"name", "range_noise_linear"}, {"sigma0_m", 0.05}, {"sigma_max_m", 0.05}, {"range_max_m", 100.0}};
-  const EffectChain chain = chain_of(json::array({sigma5cm, {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}}}));
+  const json sigma5cm = {
+      {"name", "range_noise_linear"}, {"sigma0_m", 0.05}, {"sigma_max_m", 0.05}, {"range_max_m", 100.0}};
+  const EffectChain chain =
+      chain_of(json::array({sigma5cm, {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}}}));
   for (const float r : {0.2f, 0.28f, 0.3f, 0.35f, 50.0f, 99.95f, 100.0f, 100.06f, 100.3f}) {
     const Prediction p = chain.predict(surface(r), {});
     const Moments t = truncated(r, 0.05, 0.3, 100.0);  // independent of the effect's own window
@@ -288,7 +295,8 @@ TEST(RangeLimits, WireRangeLimitsToo) {
 TEST(RangeQuantization, RangesLieOnTheLattice) {
   ColumnContext rng15;
   rng15.range_step_m = 0.008f;
-  for (const json& quantization : {json{{"name", "range_quantization"}, {"step_m", 0.008}}, json{{"name", "range_quantization"}}}) {
+  for (const json& quantization :
+       {json{{"name", "range_quantization"}, {"step_m", 0.008}}, json{{"name", "range_quantization"}}}) {
     const EffectChain chain = chain_of(json::array({kLinearOs1, quantization}));
     std::vector<IdealReturn> column;
     for (size_t b = 0; b < kBeams; ++b) column.push_back(surface(0.3f + 1.7f * static_cast<float>(b)));
@@ -331,12 +339,13 @@ TEST(RangeQuantization, AddsSheppardVariance) {
   EXPECT_NEAR(sum2 / kBeams, predicted, 0.15 * predicted);
 
   // With noise comparable to the step, Sheppard's sigma^2 + step^2/12 holds to well under 1 %.
-  const json sigma1cm = {{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.01}, {"range_max_m", 100.0}};
+  const json sigma1cm = {
+      {"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.01}, {"range_max_m", 100.0}};
   const EffectChain chain = chain_of(json::array({sigma1cm, {{"name", "range_quantization"}, {"step_m", 0.008}}}));
   for (const float r : {3.0f, 3.004f, 20.0013f}) {
     const Prediction p = chain.predict(surface(r), {});
-    expect_agreement(sample(chain, surface(r), 128 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2), p.p_detect,
-                     label("range_quantization 8 mm", r), 5.0, 0.005);
+    expect_agreement(sample(chain, surface(r), 128 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2),
+                     p.p_detect, label("range_quantization 8 mm", r), 5.0, 0.005);
   }
 }
 
@@ -387,8 +396,11 @@ TEST(Radiometry, DefaultsReproduceTheMeasuredSignalLevels) {
 }
 
 TEST(Radiometry, ReflectivityAndNearIrChannels) {
-  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}, {"ambient_photons", 300.0}, {"sky_photons", 12.0},
-                                                   {"retro_reflectance", 50.0}, {"reflectivity_255", 50.0}}}));
+  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"},
+                                                   {"ambient_photons", 300.0},
+                                                   {"sky_photons", 12.0},
+                                                   {"retro_reflectance", 50.0},
+                                                   {"reflectivity_255", 50.0}}}));
   std::vector<IdealReturn> column{surface(10.0f, 0.5f), surface(10.0f, 0.8f, 0.5f), surface(10.0f, 0.1f), IdealReturn{},
                                   surface(10.0f, 0.3f)};
   column[2].retroreflective = 1;
@@ -417,7 +429,8 @@ TEST(Radiometry, ReflectivityAndNearIrChannels) {
 TEST(Radiometry, SimulateReportsWhatPredictExpects) {
   const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}}, kLinearOs1}));
   std::vector<IdealReturn> column;
-  for (size_t b = 0; b < kBeams; ++b) column.push_back(surface(0.5f + 0.9f * static_cast<float>(b), 0.01f * static_cast<float>(b % 100), 0.7f));
+  for (size_t b = 0; b < kBeams; ++b)
+    column.push_back(surface(0.5f + 0.9f * static_cast<float>(b), 0.01f * static_cast<float>(b % 100), 0.7f));
   std::vector<Measurement> out(kBeams);
   ColumnContext context;
   context.signal_gain = 0.5f;
@@ -432,11 +445,12 @@ TEST(Radiometry, SimulateReportsWhatPredictExpects) {
 // ---- dropout (E5) ----
 
 TEST(Dropout, NoReturnRateMatchesPrediction) {
-  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}}, kLinearOs1, {{"name", "dropout"}, {"ambient_coefficient", 0.2}}}));
+  const EffectChain chain = chain_of(
+      json::array({{{"name", "radiometry"}}, kLinearOs1, {{"name", "dropout"}, {"ambient_coefficient", 0.2}}}));
   for (const float r : {10.0f, 30.0f, 40.0f, 50.0f, 60.0f, 80.0f}) {
     const Prediction p = chain.predict(surface(r, 0.1f), {});
-    expect_agreement(sample(chain, surface(r, 0.1f), 64 * 1024), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2), p.p_detect,
-                     label("dropout rho 0.1", r));
+    expect_agreement(sample(chain, surface(r, 0.1f), 64 * 1024), static_cast<double>(r) + p.bias_m,
+                     std::sqrt(p.variance_m2), p.p_detect, label("dropout rho 0.1", r));
   }
   // The Gen1 OS1 range spec points (40 m at 10 %, 120 m at 80 %) are detected about 90 % of the time.
   const EffectChain defaults = chain_of(json::array({{{"name", "radiometry"}}, {{"name", "dropout"}}}));
@@ -457,15 +471,16 @@ TEST(Dropout, NeedsRadiometryEarlierInTheChain) {
 
 TEST(EffectChain, ProfileChainSamplesMatchPrediction) {
   // The os1-64 chain on the RNG15 wire (8 mm): noise, limits and quantization together.
-  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}}, piecewise(kKnotsOs1),
+  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}},
+                                                  piecewise(kKnotsOs1),
                                                   {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
                                                   {{"name", "range_quantization"}}}));
   ColumnContext rng15;
   rng15.range_step_m = 0.008f;
   for (const float r : {2.0f, 15.0f, 35.0f, 70.0f}) {
     const Prediction p = chain.predict(surface(r), rng15);
-    expect_agreement(sample(chain, surface(r), 128 * 1024, rng15), static_cast<double>(r) + p.bias_m, std::sqrt(p.variance_m2), p.p_detect,
-                     label("os1 chain, 8 mm", r), 5.0, 0.01);
+    expect_agreement(sample(chain, surface(r), 128 * 1024, rng15), static_cast<double>(r) + p.bias_m,
+                     std::sqrt(p.variance_m2), p.p_detect, label("os1 chain, 8 mm", r), 5.0, 0.01);
   }
 }
 
@@ -474,7 +489,8 @@ TEST(EffectChain, EffectsDrawIndependentNoise) {
   const EffectChain twice = chain_of(json::array({kLinearOs1, kLinearOs1}));
   EXPECT_NE(twice.effects()[0]->stream_id(), twice.effects()[1]->stream_id());
   const Prediction p = twice.predict(surface(30.0f), {});
-  expect_agreement(sample(twice, surface(30.0f), 64 * 1024), 30.0, std::sqrt(p.variance_m2), 1.0, "two linear noises r=30");
+  expect_agreement(sample(twice, surface(30.0f), 64 * 1024), 30.0, std::sqrt(p.variance_m2), 1.0,
+                   "two linear noises r=30");
 }
 
 namespace {
@@ -501,7 +517,9 @@ bool same(const std::vector<Measurement>& a, const std::vector<Measurement>& b) 
 }  // namespace
 
 TEST(EffectChain, DeterministicInAnyColumnOrderAndThreadSplit) {
-  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}}, kLinearOs1, {{"name", "dropout"}},
+  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}},
+                                                  kLinearOs1,
+                                                  {{"name", "dropout"}},
                                                   {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
                                                   {{"name", "range_quantization"}}}));
   std::vector<uint32_t> order(512);
@@ -536,7 +554,8 @@ TEST(EffectChain, DeterministicInAnyColumnOrderAndThreadSplit) {
 }
 
 TEST(EffectChain, ReplacingKeepsOtherEffectsNoise) {
-  const EffectChain chain = chain_of(json::array({{{"name", "radiometry"}}, kLinearOs1, {{"name", "range_quantization"}}}));
+  const EffectChain chain =
+      chain_of(json::array({{{"name", "radiometry"}}, kLinearOs1, {{"name", "range_quantization"}}}));
   const auto& noise = *chain.effects()[1];
   const std::vector<double> values{0.02, 0.3, 100.0};
   const EffectChain refit = chain.replacing(1, noise.with_parameters(values));
@@ -566,7 +585,8 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
   EXPECT_EQ(error_of(effects), "profiles/os1-64.json: /effects/2/sigma0_m: must be in [0, 1], got -0.01");
 
   effects[2]["sigma0_m"] = "1 cm";
-  EXPECT_EQ(error_of(effects), "profiles/os1-64.json: /effects/2/sigma0_m: must be a number in [0, 1], got a string \"1 cm\"");
+  EXPECT_EQ(error_of(effects),
+            "profiles/os1-64.json: /effects/2/sigma0_m: must be a number in [0, 1], got a string \"1 cm\"");
 
   effects[2].erase("sigma0_m");
   EXPECT_EQ(error_of(effects),
@@ -574,15 +594,17 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
 
   effects[2]["sigma0_m"] = 0.01;
   effects[2]["sigma_m"] = 0.01;
-  EXPECT_EQ(error_of(effects), "profiles/os1-64.json: /effects/2/sigma_m: unknown parameter of range_noise_linear; "
-                               "allowed: sigma0_m, sigma_max_m, range_max_m");
+  EXPECT_EQ(error_of(effects),
+            "profiles/os1-64.json: /effects/2/sigma_m: unknown parameter of range_noise_linear; "
+            "allowed: sigma0_m, sigma_max_m, range_max_m");
 
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
             "dropout, radiometry, range_limits, range_noise_linear, range_noise_piecewise, range_quantization");
   EXPECT_TRUE(error_of(json::array({{{"sigma0_m", 0.01}}}))
                   .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: dropout,"));
-  EXPECT_EQ(error_of(json::object()), "profiles/os1-64.json: /effects: must be an array of effects [{\"name\": ...}, ...]");
+  EXPECT_EQ(error_of(json::object()),
+            "profiles/os1-64.json: /effects: must be an array of effects [{\"name\": ...}, ...]");
   EXPECT_EQ(error_of(json::array({{{"name", "range_limits"}, {"min_m", 5}, {"max_m", 1}}})),
             "profiles/os1-64.json: /effects/0/max_m: must be greater than min_m (5), got 1");
   EXPECT_EQ(error_of(json::array({{{"name", "range_quantization"}, {"step_m", true}}}), "file.json"),
@@ -616,7 +638,9 @@ TEST(EffectJson, WithParametersChecksBounds) {
 }
 
 TEST(EffectJson, RoundTripsEveryEffect) {
-  const json effects = json::array({{{"name", "radiometry"}, {"gain_photons_m2", 2e5}}, piecewise(kKnotsOs1), kLinearOs0,
+  const json effects = json::array({{{"name", "radiometry"}, {"gain_photons_m2", 2e5}},
+                                    piecewise(kKnotsOs1),
+                                    kLinearOs0,
                                     {{"name", "dropout"}, {"width", 0.5}},
                                     {{"name", "range_limits"}, {"min_m", 0.5}, {"max_m", 45.0}},
                                     {{"name", "range_quantization"}, {"step_m", 0.001}}});
@@ -636,13 +660,16 @@ TEST(EffectJson, RoundTripsEveryEffect) {
 
 TEST(EffectRegistry, ListsBuiltInsAndAcceptsNewEffects) {
   const auto names = lidartwin::registered_effects();
-  for (const char* name : {"radiometry", "range_noise_linear", "range_noise_piecewise", "range_limits", "range_quantization", "dropout"}) {
+  for (const char* name :
+       {"radiometry", "range_noise_linear", "range_noise_piecewise", "range_limits", "range_quantization", "dropout"}) {
     EXPECT_NE(std::find(names.begin(), names.end(), name), names.end()) << name;
   }
   lidartwin::register_effect("test_alias_of_quantization", [](const json& params, std::string_view source) {
     json copy = params;
     copy["name"] = "range_quantization";
-    return EffectChain::from_json(json::array({copy}), source).effects()[0]->with_parameters(std::vector<double>{0.001});
+    return EffectChain::from_json(json::array({copy}), source)
+        .effects()[0]
+        ->with_parameters(std::vector<double>{0.001});
   });
   EXPECT_EQ(chain_of(json::array({{{"name", "test_alias_of_quantization"}}})).effects().size(), 1u);
 }

@@ -73,8 +73,8 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
 
  private:
   static constexpr float kSureX = 6.0f;
-  float sure_ratio_;          // S / S_th at x = kSureX
-  double sure_probability_;   // P_det at x = kSureX
+  float sure_ratio_;         // S / S_th at x = kSureX
+  double sure_probability_;  // P_det at x = kSureX
 };
 
 }  // namespace

@@ -14,9 +14,16 @@ namespace {
 std::string escape_token(std::string_view token) {
   std::string out;
   for (const char c : token) {
-    if (c == '~') out += "~0";
-    else if (c == '/') out += "~1";
-    else out += c;
+    switch (c) {
+      case '~':
+        out += "~0";
+        break;
+      case '/':
+        out += "~1";
+        break;
+      default:
+        out += c;
+    }
   }
   return out;
 }
@@ -56,8 +63,8 @@ void check_number(double value, std::string_view where, Bounds bounds) {
 
 double read_number(const nlohmann::json& value, std::string_view where, Bounds bounds) {
   if (!value.is_number()) {
-    fail(where, "must be a number in " + format_range(bounds.lower, bounds.upper) + ", got " + type_name(value) +
-                    " " + value.dump());
+    fail(where, "must be a number in " + format_range(bounds.lower, bounds.upper) + ", got " + type_name(value) + " " +
+                    value.dump());
   }
   const double number = value.get<double>();
   check_number(number, where, bounds);
@@ -71,8 +78,8 @@ void check_keys(const nlohmann::json& params, std::string_view source, std::stri
     if (key == "name" || std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
     std::string list;
     for (const auto name : allowed) list += (list.empty() ? "" : ", ") + std::string(name);
-    fail(json_path(source, key), "unknown parameter of " + std::string(effect) +
-                                     (allowed.empty() ? "; it takes none" : "; allowed: " + list));
+    fail(json_path(source, key),
+         "unknown parameter of " + std::string(effect) + (allowed.empty() ? "; it takes none" : "; allowed: " + list));
   }
 }
 

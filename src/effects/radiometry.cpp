@@ -10,7 +10,8 @@
 // REFLECTIVITY is the firmware's inverse of S (so it reports rho_app): 100 rho_app up to 100 %,
 // then a logarithmic band 101-255 for retroreflectors, rho_app = reflectivity_255 mapping to 255
 // (section 2.1: two-band scheme well supported, its log slope unverified: a fitted parameter).
-// NEAR_IR is the ambient light the surface reflects, B = ambient * rho (section 2.2 step 3).
+// NEAR_IR is the ambient light the surface reflects, B = ambient * rho (section 2.2 step 3); the
+// signal gain does not scale it (the laser's multiplier adds no sunlight).
 // The channels are expected values, without shot noise: effects that depend on the signal
 // (dropout, E5) then see in simulate exactly what predict reports, and simulate/predict agree.
 #include <cmath>
@@ -30,7 +31,7 @@ struct RadiometryParameters {
   double specular_exponent = 20.0;  // n of the Phong lobe, used where the material has specular > 0
   double retro_reflectance = 20.0;  // rho_app of a retroreflective hit (signal ~6000 vs <1000, [S36])
   double reflectivity_255 = 100.0;  // rho_app reported as 255
-  double ambient_photons = 100.0;   // NEAR_IR of a rho = 1 surface
+  double ambient_photons = 100.0;   // NEAR_IR of a rho = 1 surface (no measured level yet: per scene)
   double sky_photons = 0.0;         // NEAR_IR where the beam hits nothing
 };
 
@@ -53,7 +54,8 @@ class Radiometry final : public TabledEffect<Radiometry, RadiometryParameters> {
   explicit Radiometry(const P& p)
       : TabledEffect(p),
         range_factor_([&p](double r) {
-          const double overlap = p.overlap_range_m > 0.0 ? 1.0 / (1.0 + std::pow(p.overlap_range_m / r, p.overlap_exponent)) : 1.0;
+          const double overlap =
+              p.overlap_range_m > 0.0 ? 1.0 / (1.0 + std::pow(p.overlap_range_m / r, p.overlap_exponent)) : 1.0;
           return overlap * std::exp(-2.0 * p.attenuation_per_m * r) / (r * r);
         }),
         log_band_scale_(static_cast<float>(155.0 / std::log(p.reflectivity_255))) {}

@@ -53,8 +53,7 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
   // that Gaussian truncated to the window, which the prediction records.
   void predict(const IdealReturn& ideal, const ColumnContext& context, Prediction& prediction) const override {
     const double lower = static_cast<double>(static_cast<float>(params().min_m));
-    const double upper =
-        static_cast<double>(std::min(static_cast<float>(params().max_m), context.max_wire_range_m));
+    const double upper = static_cast<double>(std::min(static_cast<float>(params().max_m), context.max_wire_range_m));
     const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
     double inside = 0.0;
     if (prediction.variance_m2 > 0.0) {

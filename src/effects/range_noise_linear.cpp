@@ -25,13 +25,10 @@ class RangeNoiseLinear final : public TabledEffect<RangeNoiseLinear, LinearNoise
       {"range_max_m", &P::range_max_m, {0.1, 10000.0}, true},
   }};
 
-  explicit RangeNoiseLinear(const P& p)
-      : TabledEffect(p), slope_((p.sigma_max_m - p.sigma0_m) / p.range_max_m) {}
+  explicit RangeNoiseLinear(const P& p) : TabledEffect(p), slope_((p.sigma_max_m - p.sigma0_m) / p.range_max_m) {}
 
   // sigma(r) of the true range; clamped at 0 in case sigma_max < sigma0 extrapolates below zero.
-  double sigma(float range_m) const {
-    return std::max(0.0, params().sigma0_m + slope_ * static_cast<double>(range_m));
-  }
+  double sigma(float range_m) const { return std::max(0.0, params().sigma0_m + slope_ * static_cast<double>(range_m)); }
 
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
                 std::span<Measurement> measured) const override {

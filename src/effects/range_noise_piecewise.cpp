@@ -128,7 +128,9 @@ class RangeNoisePiecewise final : public Effect {
     const uint32_t bits = std::bit_cast<uint32_t>(std::clamp(r, 0x1.0p-6f, 0x1.0p10f));
     return (bits - kMinBits) >> kBucketShift;
   }
-  static double bucket_start(uint32_t b) { return static_cast<double>(std::bit_cast<float>(kMinBits + (b << kBucketShift))); }
+  static double bucket_start(uint32_t b) {
+    return static_cast<double>(std::bit_cast<float>(kMinBits + (b << kBucketShift)));
+  }
   // The segment k (knot k to k+1) holding r, searching forward from `k`.
   size_t segment_scan(size_t k, double r) const {
     while (k + 2 < knots_.size() && r > knots_[k + 1].range_m) ++k;

@@ -12,9 +12,7 @@ namespace {
 
 // std::nearbyint is a library call on baseline x86-64 (no SSE4.1 roundsd); the conversion is not.
 // |x| stays far below 2^62 (ranges under 10 km, steps over 1 nm).
-double round_half_away(double x) {
-  return static_cast<double>(static_cast<int64_t>(x >= 0.0 ? x + 0.5 : x - 0.5));
-}
+double round_half_away(double x) { return static_cast<double>(static_cast<int64_t>(x >= 0.0 ? x + 0.5 : x - 0.5)); }
 
 struct QuantizationParameters {
   double step_m = 0.0;  // 0 = the wire format's step, context.range_step_m

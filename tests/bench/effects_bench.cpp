@@ -1,11 +1,11 @@
 // Nanoseconds per pixel of the effect chain after the cast: the daemon's budget is a few ns
 // (DESIGN.md "Speed"). One 128-beam column per call, the column index advancing as in a frame.
+#include <benchmark/benchmark.h>
+
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <benchmark/benchmark.h>
-#include <nlohmann/json.hpp>
 
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/random/counter_rng.h"
@@ -41,10 +41,12 @@ std::vector<IdealReturn> typical_column() {
 }
 
 const json kRadiometry = {{"name", "radiometry"}};
-const json kPiecewise = {{"name", "range_noise_piecewise"},
-                         {"points_m", json::parse("[[0.3, 0.007], [0.98, 0.007], [1.02, 0.01], [19.6, 0.01], [20.4, 0.02], "
-                                                  "[49.0, 0.02], [51.0, 0.05], [100, 0.05]]")}};
-const json kLinear = {{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.15}, {"range_max_m", 100.0}};
+const json kPiecewise = {
+    {"name", "range_noise_piecewise"},
+    {"points_m", json::parse("[[0.3, 0.007], [0.98, 0.007], [1.02, 0.01], [19.6, 0.01], [20.4, 0.02], "
+                             "[49.0, 0.02], [51.0, 0.05], [100, 0.05]]")}};
+const json kLinear = {
+    {"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.15}, {"range_max_m", 100.0}};
 const json kLimits = {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}};
 const json kQuantization = {{"name", "range_quantization"}};
 const json kDropout = {{"name", "dropout"}};
@@ -89,7 +91,8 @@ void BM_NormalDraw(benchmark::State& state) {
   std::vector<double> out(kBeams);
   uint32_t pair = 0;
   for (auto _ : state) {
-    for (uint32_t b = 0; b < kBeams; ++b) out[b] = kZiggurat ? streams(b).normal_ziggurat(pair) : streams(b).normal(pair);
+    for (uint32_t b = 0; b < kBeams; ++b)
+      out[b] = kZiggurat ? streams(b).normal_ziggurat(pair) : streams(b).normal(pair);
     benchmark::DoNotOptimize(out.data());
     ++pair;
   }

@@ -113,9 +113,10 @@ class RandomStream {
   }
   // Standard normal by the ziggurat method (Marsaglia & Tsang 2000, in Doornik's 2005 ZIGNOR
   // form, 256 layers): exact like normal(pair), several times faster (no log, sqrt or cos on
-  // 99.3 % of draws; tests/bench/effects_bench.cpp), and a different value for the same pair. Uses draw 2*pair (layer from the low 8 bits, position from the top 53); the rare
-  // (0.7 %) slow path continues with a SplitMix64 sequence seeded by draw 2*pair+1, so the value
-  // is still a pure function of the counter.
+  // 99.3 % of draws; tests/bench/effects_bench.cpp), and a different value for the same pair.
+  // Uses draw 2*pair (layer from the low 8 bits, position from the top 53); the rare slow path
+  // continues with a SplitMix64 sequence seeded by draw 2*pair+1, so the value is still a pure
+  // function of the counter.
   double normal_ziggurat(uint32_t pair) const {
     const auto& table = rng_detail::ziggurat_table();
     const uint64_t b = bits(2 * pair);
