@@ -1,0 +1,92 @@
+// `lidartwin serve` as a user meets it: bad flags are refused with a message naming the flag,
+// --record captures exactly what was sent, SIGTERM exits 0.
+#include <chrono>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "e2e/support/batcher.h"
+#include "e2e/support/daemon.h"
+#include "e2e/support/room.h"
+#include "e2e/support/sdk_client.h"
+#include "e2e/support/udp_socket.h"
+#include "lidartwin/pcap/pcap.h"
+
+namespace lidartwin::e2e {
+namespace {
+
+std::string room_flags() {
+  std::string flags;
+  for (const auto& arg : room_args()) flags += " '" + arg + "'";
+  return flags;
+}
+
+struct BadFlag {
+  std::string args;
+  std::string named;  // the message must name this
+};
+
+class ServeFlags : public ::testing::TestWithParam<BadFlag> {};
+
+TEST_P(ServeFlags, RefusesABadFlagNamingIt) {
+  const auto [code, output] = run_cli("serve --http-port 0" + room_flags() + " " + GetParam().args);
+  EXPECT_NE(code, 0) << output;
+  EXPECT_NE(output.find(GetParam().named), std::string::npos) << output;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Flags, ServeFlags,
+    ::testing::Values(BadFlag{"--lidar-mode 1000x7", "--lidar-mode"}, BadFlag{"--udp-profile FAST", "--udp-profile"},
+                      BadFlag{"--address 300.1.2.3", "--address"}, BadFlag{"--http-port 70000", "--http-port"},
+                      BadFlag{"--scene /no/such/scene.glb", "--scene"}, BadFlag{"--profile no-such-sensor", "no-such-sensor"},
+                      BadFlag{"--trajectory /no/such.tum", "--trajectory"},  // excluded by the --pose of room_args
+                      BadFlag{"--threads -3", "--threads"}, BadFlag{"--no-such-flag", "--no-such-flag"}));
+
+TEST(ServeRecord, CapturesEverySentPacketWithMetadata) {
+  const auto dir = scratch_dir() / "record";
+  std::filesystem::remove_all(dir);
+  UdpSocket lidar;
+  UdpSocket imu;
+  auto args = room_args();
+  args.insert(args.end(), {"--record", dir.string()});
+  Daemon daemon("127.0.0.1", 0, args);
+  SensorHttp http(daemon.address(), daemon.http_port());
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.imu_port = imu.port();
+  request.lidar_mode = "512x10";
+  const Metadata metadata = parse(sdk016_init_client(http, request));
+  Batcher batcher(metadata);
+  expect_complete_scans(receive_scans(lidar, batcher, 2, std::chrono::seconds(10)), metadata, 2);
+  ASSERT_EQ(daemon.stop(), 0) << daemon.log();
+
+  const Metadata recorded = load_metadata(dir / "metadata.json");
+  EXPECT_EQ(recorded.sensor_info.initialization_id, metadata.sensor_info.initialization_id);
+  size_t lidar_packets = 0;
+  size_t imu_packets = 0;
+  for (const auto& datagram : read_pcap(dir / "capture.pcap")) {
+    EXPECT_EQ(datagram.src_ip, (std::array<uint8_t, 4>{127, 0, 0, 1}));
+    EXPECT_NE(datagram.src_port, lidar.port());  // an ephemeral source port (1 item 8)
+    if (datagram.dst_port == lidar.port()) {
+      EXPECT_EQ(datagram.payload.size(), batcher.format().lidar_packet_size());
+      ++lidar_packets;
+    } else if (datagram.dst_port == imu.port()) {
+      EXPECT_EQ(datagram.payload.size(), 48u);
+      ++imu_packets;
+    }
+  }
+  EXPECT_GE(lidar_packets, 3 * batcher.expected_packets());
+  EXPECT_GE(imu_packets, 20u);
+}
+
+TEST(ServeSignals, SigtermStopsTheDaemonWithExitCodeZero) {
+  Daemon daemon("127.0.0.1", 0, room_args());
+  const auto started = std::chrono::steady_clock::now();
+  EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+  EXPECT_LT(std::chrono::steady_clock::now() - started, std::chrono::seconds(7));
+  EXPECT_NE(daemon.log().find("streamer: stopped after"), std::string::npos) << daemon.log();
+}
+
+}  // namespace
+}  // namespace lidartwin::e2e
