@@ -27,6 +27,13 @@ struct FrameJob {
   Scan& scan;
 };
 
+// Rays end 1 m past the profile's maximum range, so range noise can still carry a return across
+// it and the effect chain's range_limits decide (E16), and never beyond what the wire can carry (E9).
+float cast_limit_m(const SensorProfile& profile, const PacketFormat& packets) {
+  const double wire_m = packets.channel_max(ChannelField::kRange) / 1000.0;
+  return static_cast<float>(std::min(profile.max_range_m + 1.0, wire_m));
+}
+
 }  // namespace
 
 struct FrameRenderer::Impl {
@@ -36,8 +43,8 @@ struct FrameRenderer::Impl {
         packets(format),
         config(render_config),
         geometry(profile.beams, format.columns_per_frame),
-        // Cast as far as the wire can carry: the effect chain decides what is too far (E9, E16).
-        caster(scene, geometry, static_cast<float>(packets.channel_max(ChannelField::kRange)) / 1000.0f + 1.0f),
+        cast_range(cast_limit_m(profile, packets)),
+        caster(scene, geometry, cast_range),
         encoder(packets),
         pool(render_config.threads) {
     assert(profile.beams.pixels_per_column() == format.pixels_per_column);
@@ -83,6 +90,7 @@ struct FrameRenderer::Impl {
   PacketFormat packets;
   RenderConfig config;
   BeamGeometry geometry;
+  float cast_range;
   ColumnCaster caster;
   render_detail::ChannelEncoder encoder;
   ColumnContext context;
@@ -99,6 +107,7 @@ FrameRenderer::~FrameRenderer() = default;
 
 const BeamGeometry& FrameRenderer::geometry() const { return impl_->geometry; }
 int FrameRenderer::threads() const { return impl_->pool.size(); }
+float FrameRenderer::cast_range_m() const { return impl_->cast_range; }
 
 void FrameRenderer::render(uint64_t frame_index, double frame_start_s, const Trajectory& trajectory, int first,
                            int last, Scan& scan) const {

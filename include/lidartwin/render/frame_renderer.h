@@ -45,6 +45,7 @@ class FrameRenderer {
 
   const BeamGeometry& geometry() const;
   int threads() const;
+  float cast_range_m() const;  // Embree's tfar: where the cast stops looking for a surface
 
  private:
   struct Impl;

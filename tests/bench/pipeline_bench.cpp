@@ -1,0 +1,232 @@
+// The emulator's speed against raw Embree (DESIGN.md "Speed: what raw Embree means here"), for an
+// OS1-128 at 2048x10 flying scenes/plant.glb's inspection lap:
+//   (a) raw reference: the same world rays, each column's 128 beams as 16-ray packets through
+//       rtcIntersect16 with RTC_INTERSECT_CONTEXT_FLAG_COHERENT, all cores (rays prebuilt, only
+//       the packet copy and the intersect are timed);
+//   (b) the same rays one per rtcIntersect1 call, all cores (for context);
+//   (c) the full pipeline: pose per column, cast, effect chain, protocol units, packet encode with
+//       CRC-64 into packet buffers (FrameRenderer + PacketFormat, as `record` runs them).
+// Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=3] [only=all|pipeline] (best of
+// the repeats; "pipeline" skips (a) and (b), for profiling).
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <string>
+#include <ctime>
+#include <thread>
+#include <vector>
+
+#include <embree3/rtcore.h>
+
+#include "lidartwin/caster/beam_geometry.h"
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/metadata/metadata.h"
+#include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/pose/pose.h"
+#include "lidartwin/profile/sensor_profile.h"
+#include "lidartwin/render/frame_renderer.h"
+#include "lidartwin/scene/scene.h"
+
+namespace {
+
+using namespace lidartwin;
+using Clock = std::chrono::steady_clock;
+
+// Wall time and the process's CPU time: on a shared machine the CPU-time rate (rays per CPU second
+// times the thread count) estimates what idle cores would do.
+struct Rate {
+  double wall_per_s = 0;
+  double cpu_per_s = 0;  // per CPU second, times threads
+};
+double cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+class Stopwatch {
+ public:
+  Rate rate(double items, int threads) const {
+    const double wall = std::chrono::duration<double>(Clock::now() - wall_).count();
+    return {items / wall, items / (cpu_seconds() - cpu_) * threads};
+  }
+
+ private:
+  Clock::time_point wall_ = Clock::now();
+  double cpu_ = cpu_seconds();
+};
+
+const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
+
+struct Setup {
+  SensorProfile profile = load_profile("os1-128");
+  Scene scene = Scene::load(kSource / "scenes/plant.glb");
+  Trajectory trajectory = Trajectory::load_tum(kSource / "scenes/plant_inspection.tum");
+  Metadata metadata = make_metadata(SensorInfo{}, profile.beams, [] {
+    nlohmann::json config = default_config_params();
+    config["lidar_mode"] = "2048x10";
+    config["udp_profile_lidar"] = "RNG19_RFL8_SIG16_NIR16";
+    return config;
+  }());
+  const LidarDataFormat& format() const { return metadata.format; }
+};
+
+// Runs task(column) for every column index in [0, count) on `threads` threads.
+void parallel_columns(int threads, int count, const std::function<void(int)>& task) {
+  std::atomic<int> next{0};
+  const auto work = [&] {
+    for (int c = next.fetch_add(1); c < count; c = next.fetch_add(1)) task(c);
+  };
+  std::vector<std::jthread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+}
+
+// The world rays of `frames` frames, 16-ray packets per column (8 per 128-beam column), exactly the
+// rays the caster builds: pose at the column's time applied to the SDK rays (protocol doc 7.2).
+std::vector<RTCRay16> prebuilt_rays(const Setup& s, int frames, float tfar) {
+  const int w = s.format().columns_per_frame, h = s.format().pixels_per_column, per_column = (h + 15) / 16;
+  const BeamGeometry geometry(s.profile.beams, w);
+  std::vector<RTCRay16> packets(static_cast<size_t>(frames) * static_cast<size_t>(w * per_column));
+  for (int f = 0; f < frames; ++f) {
+    for (int m = 0; m < w; ++m) {
+      const Pose pose = s.trajectory.at(s.trajectory.start_s() + f / 10.0 + m / (10.0 * w));
+      const Eigen::Matrix3f rotation = pose.rotation.toRotationMatrix().cast<float>();
+      const Eigen::Vector3f translation = pose.translation.cast<float>();
+      for (int r = 0; r < h; ++r) {
+        RTCRay16& p = packets[static_cast<size_t>((f * w + m) * per_column + r / 16)];
+        const int i = r % 16;
+        const BeamRay& ray = geometry.ray(r, m);
+        const Eigen::Vector3f o = rotation * ray.origin_m + translation, d = rotation * ray.direction;
+        p.org_x[i] = o.x(), p.org_y[i] = o.y(), p.org_z[i] = o.z();
+        p.dir_x[i] = d.x(), p.dir_y[i] = d.y(), p.dir_z[i] = d.z();
+        p.tnear[i] = ray.range_offset_m, p.tfar[i] = tfar, p.time[i] = 0, p.mask[i] = ~0u;
+        p.id[i] = static_cast<unsigned>(r), p.flags[i] = 0;
+      }
+    }
+  }
+  return packets;
+}
+
+Rate raw_packets(const Setup& s, const std::vector<RTCRay16>& packets, int threads) {
+  const int per_column = (s.format().pixels_per_column + 15) / 16;
+  const int columns = static_cast<int>(packets.size()) / per_column;
+  std::atomic<uint64_t> hits{0};
+  const Stopwatch watch;
+  parallel_columns(threads, columns, [&](int c) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) int valid[16];
+    std::fill(valid, valid + 16, -1);
+    uint64_t column_hits = 0;
+    for (int k = 0; k < per_column; ++k) {
+      alignas(64) RTCRayHit16 rh;
+      std::memcpy(&rh.ray, &packets[static_cast<size_t>(c * per_column + k)], sizeof(RTCRay16));
+      std::fill(rh.hit.geomID, rh.hit.geomID + 16, RTC_INVALID_GEOMETRY_ID);
+      rtcIntersect16(valid, s.scene.embree_scene(), &context, &rh);
+      for (int i = 0; i < 16; ++i) column_hits += rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+    }
+    hits.fetch_add(column_hits, std::memory_order_relaxed);
+  });
+  if (hits.load() == 0) std::fprintf(stderr, "warning: no hits\n");
+  return watch.rate(static_cast<double>(packets.size() * 16), threads);
+}
+
+Rate raw_single(const Setup& s, const std::vector<RTCRay16>& packets, int threads) {
+  std::atomic<uint64_t> hits{0};
+  const Stopwatch watch;
+  parallel_columns(threads, static_cast<int>(packets.size()), [&](int k) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    const RTCRay16& p = packets[static_cast<size_t>(k)];
+    uint64_t packet_hits = 0;
+    for (int i = 0; i < 16; ++i) {
+      RTCRayHit rh{};
+      rh.ray = {p.org_x[i], p.org_y[i], p.org_z[i], p.tnear[i], p.dir_x[i], p.dir_y[i], p.dir_z[i], 0.0f,
+                p.tfar[i],  ~0u,        p.id[i],      0};
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(s.scene.embree_scene(), &context, &rh);
+      packet_hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    hits.fetch_add(packet_hits, std::memory_order_relaxed);
+  });
+  return watch.rate(static_cast<double>(packets.size() * 16), threads);
+}
+
+struct PipelineRate {
+  Rate pixels;          // points of the cloud (every pixel: a return or range 0)
+  double return_share;  // of the pixels, those with a return
+};
+
+PipelineRate pipeline(const Setup& s, const FrameRenderer& renderer, int frames, int threads) {
+  const PacketFormat packets(s.format());
+  const int w = s.format().columns_per_frame, cpp = s.format().columns_per_packet;
+  const size_t size = packets.lidar_packet_size();
+  std::vector<uint8_t> bytes(static_cast<size_t>(w / cpp) * size);
+  Scan scan(s.format());
+  uint64_t returns = 0;
+  const Stopwatch watch;
+  for (int f = 0; f < frames; ++f) {
+    PacketHeader header;
+    header.frame_id = static_cast<uint32_t>(f);
+    renderer.render(static_cast<uint64_t>(f), s.trajectory.start_s() + f / 10.0, s.trajectory, 0, w, scan,
+                    [&](int begin, int) {
+                      const auto slot = static_cast<size_t>(begin / cpp);
+                      packets.encode(header, scan, begin, std::span<uint8_t>(bytes.data() + slot * size, size));
+                    });
+    for (const uint32_t range : scan.channels[static_cast<size_t>(ChannelField::kRange)]) returns += range != 0;
+  }
+  const double pixels = static_cast<double>(frames) * w * s.format().pixels_per_column;
+  return {watch.rate(pixels, threads), static_cast<double>(returns) / pixels};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int frames = argc > 1 ? std::atoi(argv[1]) : 20;
+  const int threads_arg = argc > 2 ? std::atoi(argv[2]) : 0;
+  const int repeats = argc > 3 ? std::atoi(argv[3]) : 3;
+  const bool only_pipeline = argc > 4 && std::string(argv[4]) == "pipeline";
+  const int threads = threads_arg > 0 ? threads_arg : static_cast<int>(std::thread::hardware_concurrency());
+  const Setup s;
+  RenderConfig config;
+  config.seed = 1;
+  config.threads = threads;
+  const FrameRenderer renderer(s.scene, s.profile, EffectChain::from_json(s.profile.effects, "os1-128"), s.format(),
+                               config);
+  const auto rays = only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, frames, renderer.cast_range_m());
+  Rate raw16, raw1;
+  PipelineRate pipe{};
+  const auto keep_best = [](Rate& best, const Rate& r) {
+    best.wall_per_s = std::max(best.wall_per_s, r.wall_per_s);
+    best.cpu_per_s = std::max(best.cpu_per_s, r.cpu_per_s);
+  };
+  for (int r = 0; r < repeats; ++r) {
+    if (!only_pipeline) {
+      keep_best(raw16, raw_packets(s, rays, threads));
+      keep_best(raw1, raw_single(s, rays, threads));
+    }
+    const PipelineRate p = pipeline(s, renderer, frames, threads);
+    keep_best(pipe.pixels, p.pixels);
+    pipe.return_share = p.return_share;
+  }
+  const double real_time = 2048.0 * 128 * 10;  // pixels per second of a real sensor
+  std::printf("OS1-128 2048x10, scenes/plant.glb (%zu triangles), %d frames, %d threads, best of %d\n",
+              s.scene.triangle_count(), frames, threads, repeats);
+  std::printf("                                          wall clock   | CPU time x threads (idle-machine estimate)\n");
+  const auto row = [](const char* name, const Rate& r) {
+    std::printf("%-40s %8.2f M/s | %8.2f M/s\n", name, r.wall_per_s * 1e-6, r.cpu_per_s * 1e-6);
+  };
+  row("(a) raw Embree rtcIntersect16 coherent", raw16);
+  row("(b) raw Embree rtcIntersect1", raw1);
+  row("(c) pipeline points (pixels)", pipe.pixels);
+  std::printf("    returns %.0f %% of points; %.1fx real time (wall), %.1fx (CPU estimate)\n", 100 * pipe.return_share,
+              pipe.pixels.wall_per_s / real_time, pipe.pixels.cpu_per_s / real_time);
+  std::printf("ratio pipeline / raw (a)                 %8.3f     | %8.3f\n", pipe.pixels.wall_per_s / raw16.wall_per_s,
+              pipe.pixels.cpu_per_s / raw16.cpu_per_s);
+  return 0;
+}
