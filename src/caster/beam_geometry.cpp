@@ -1,6 +1,7 @@
 // Beam rays as the exact inverse of the SDK's XYZ projection (protocol doc 7.1, 7.2).
 #include "lidartwin/caster/beam_geometry.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 #include <numbers>
@@ -17,6 +18,23 @@ Eigen::Matrix3d rotation_of(const Mat4& m) {
   return r;
 }
 Eigen::Vector3d translation_of(const Mat4& m) { return {m[3], m[7], m[11]}; }
+
+RayPacket16 make_packet(const BeamRay* column, int first_row, int rows) {
+  RayPacket16 packet;
+  packet.first_row = first_row;
+  packet.count = std::min(RayPacket16::kLanes, rows - first_row);
+  for (int i = 0; i < RayPacket16::kLanes; ++i) {
+    const BeamRay& ray = column[first_row + std::min(i, packet.count - 1)];
+    packet.org_x[i] = ray.origin_m.x();
+    packet.org_y[i] = ray.origin_m.y();
+    packet.org_z[i] = ray.origin_m.z();
+    packet.dir_x[i] = ray.direction.x();
+    packet.dir_y[i] = ray.direction.y();
+    packet.dir_z[i] = ray.direction.z();
+    packet.tnear[i] = ray.range_offset_m;
+  }
+  return packet;
+}
 
 }  // namespace
 
@@ -53,6 +71,11 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
       ray.direction = entry.direction.cast<float>();
       ray.range_offset_m = static_cast<float>(kRangeUnit * n_mm);
     }
+  }
+  packets_per_column_ = (rows_ + RayPacket16::kLanes - 1) / RayPacket16::kLanes;
+  packets_.reserve(static_cast<size_t>(columns_ * packets_per_column_));
+  for (int m = 0; m < columns_; ++m) {
+    for (int first = 0; first < rows_; first += RayPacket16::kLanes) packets_.push_back(make_packet(&ray(0, m), first, rows_));
   }
 }
 

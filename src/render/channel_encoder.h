@@ -11,24 +11,27 @@
 
 namespace lidartwin::render_detail {
 
+// A channel's conversion: value (in protocol units, after scale) -> multiple of step, at most max.
+struct ChannelLimits {
+  float scale;  // 1000 for ranges (m -> mm), else 1
+  float step;
+  float max;
+};
+
 class ChannelEncoder {
  public:
   explicit ChannelEncoder(const PacketFormat& format);
   void write(std::span<const Measurement> measured, int column, Scan& scan) const;
   void clear(int column, Scan& scan) const;  // every channel of the column to 0
 
+  using Writer = void (*)(const ChannelLimits&, std::span<const Measurement>, std::span<uint32_t>);
+
  private:
   struct Channel {
     ChannelField field;
-    float Measurement::*value;
-    float scale;  // to protocol units: 1000 for ranges (m -> mm), else 1
-    float step;
-    float max;
-    bool is_range;
+    ChannelLimits limits;
+    Writer write;  // instantiated per Measurement member, so the loop reads a fixed offset
   };
-  static void write_range(const Channel& channel, std::span<const Measurement> measured, std::span<uint32_t> out);
-  static void write_clamped(const Channel& channel, std::span<const Measurement> measured, std::span<uint32_t> out);
-
   std::vector<Channel> channels_;     // the profile's channels that carry a Measurement value
   std::vector<ChannelField> fields_;  // every channel the profile carries
 };

@@ -23,6 +23,7 @@
 #include <embree3/rtcore.h>
 
 #include "lidartwin/caster/beam_geometry.h"
+#include "lidartwin/caster/column_caster.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/lidar_packet.h"
@@ -157,6 +158,21 @@ Rate raw_single(const Setup& s, const std::vector<RTCRay16>& packets, int thread
   return watch.rate(static_cast<double>(packets.size() * 16), threads);
 }
 
+// ColumnCaster alone (pose per column, packets, IdealReturns, edges): the caster's share of (c).
+Rate caster_only(const Setup& s, const BeamGeometry& geometry, float tfar, int frames, int threads) {
+  const ColumnCaster caster(s.scene, geometry, tfar);
+  const int w = s.format().columns_per_frame;
+  const Stopwatch watch;
+  parallel_columns(threads, frames * w / 16, [&](int block) {
+    std::vector<IdealReturn> column(static_cast<size_t>(geometry.rows()));
+    for (int c = block * 16; c < block * 16 + 16; ++c) {
+      const int f = c / w, m = c % w;
+      caster.cast(m, s.trajectory.at(s.trajectory.start_s() + f / 10.0 + m / (10.0 * w)), column);
+    }
+  });
+  return watch.rate(static_cast<double>(frames) * w * geometry.rows(), threads);
+}
+
 struct PipelineRate {
   Rate pixels;          // points of the cloud (every pixel: a return or range 0)
   double return_share;  // of the pixels, those with a return
@@ -199,7 +215,7 @@ int main(int argc, char** argv) {
   const FrameRenderer renderer(s.scene, s.profile, EffectChain::from_json(s.profile.effects, "os1-128"), s.format(),
                                config);
   const auto rays = only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, frames, renderer.cast_range_m());
-  Rate raw16, raw1;
+  Rate raw16, raw1, cast;
   PipelineRate pipe{};
   const auto keep_best = [](Rate& best, const Rate& r) {
     best.wall_per_s = std::max(best.wall_per_s, r.wall_per_s);
@@ -209,6 +225,7 @@ int main(int argc, char** argv) {
     if (!only_pipeline) {
       keep_best(raw16, raw_packets(s, rays, threads));
       keep_best(raw1, raw_single(s, rays, threads));
+      keep_best(cast, caster_only(s, renderer.geometry(), renderer.cast_range_m(), frames, threads));
     }
     const PipelineRate p = pipeline(s, renderer, frames, threads);
     keep_best(pipe.pixels, p.pixels);
@@ -223,6 +240,7 @@ int main(int argc, char** argv) {
   };
   row("(a) raw Embree rtcIntersect16 coherent", raw16);
   row("(b) raw Embree rtcIntersect1", raw1);
+  row("    ColumnCaster alone (rays)", cast);
   row("(c) pipeline points (pixels)", pipe.pixels);
   std::printf("    returns %.0f %% of points; %.1fx real time (wall), %.1fx (CPU estimate)\n", 100 * pipe.return_share,
               pipe.pixels.wall_per_s / real_time, pipe.pixels.cpu_per_s / real_time);

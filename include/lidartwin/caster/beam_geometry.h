@@ -25,6 +25,22 @@ struct SdkLutEntry {
 };
 SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id);
 
+// The same rays, 16 beams per packet in Embree's structure-of-arrays order, so the caster's
+// transform into the world vectorizes. Rows first + i for lane i; lanes past the last row repeat
+// it (they are masked off when cast).
+struct RayPacket16 {
+  static constexpr int kLanes = 16;
+  alignas(64) float org_x[kLanes];
+  alignas(64) float org_y[kLanes];
+  alignas(64) float org_z[kLanes];
+  alignas(64) float dir_x[kLanes];
+  alignas(64) float dir_y[kLanes];
+  alignas(64) float dir_z[kLanes];
+  alignas(64) float tnear[kLanes];
+  int first_row = 0;
+  int count = 0;  // lanes in use
+};
+
 class BeamGeometry {
  public:
   BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame);
@@ -33,12 +49,19 @@ class BeamGeometry {
   const BeamRay& ray(int row, int measurement_id) const { return rays_[static_cast<size_t>(measurement_id * rows_ + row)]; }
   // The point the SDK computes for a range in mm (7.1), in the sensor frame, metres.
   Eigen::Vector3d point(int row, int measurement_id, double range_mm) const;
+  // A column's rays as packets_per_column() 16-lane packets.
+  int packets_per_column() const { return packets_per_column_; }
+  const RayPacket16* packets(int measurement_id) const {
+    return packets_.data() + static_cast<size_t>(measurement_id * packets_per_column_);
+  }
 
  private:
   int columns_ = 0;
   int rows_ = 0;
   std::vector<BeamRay> rays_;  // column-major like Scan
-  BeamIntrinsics beams_;       // for point(), in double precision
+  int packets_per_column_ = 0;
+  std::vector<RayPacket16> packets_;  // the same rays, column by column
+  BeamIntrinsics beams_;              // for point(), in double precision
 };
 
 }  // namespace lidartwin
