@@ -2,7 +2,9 @@
 // frame's packets and the IMU packets due before them, in time order.
 #include "cli/recorder.h"
 
+#include <array>
 #include <cmath>
+#include <future>
 #include <fstream>
 #include <vector>
 
@@ -73,40 +75,80 @@ void write_metadata(const Metadata& metadata, const std::filesystem::path& path)
   if (!out) throw InputError(path.string() + ": write failed");
 }
 
+// One frame's sent packets, encoded, with the time each one leaves.
+struct EncodedFrame {
+  std::vector<uint8_t> bytes;        // packets_to_send order
+  std::vector<uint64_t> times_ns;    // per packet: its last column's timestamp
+};
+
+// Renders frames and encodes their packets; each packet is encoded (with its CRC) by the render
+// worker that finished its columns.
+class FrameEncoder {
+ public:
+  explicit FrameEncoder(const Recording& recording)
+      : recording_(recording),
+        packets_(recording.metadata.format),
+        renderer_(recording.scene, recording.profile, recording.chain, recording.metadata.format, recording.render),
+        sent_(packets_to_send(recording.metadata.format)),
+        scan_(recording.metadata.format) {
+    const int cpp = recording.metadata.format.columns_per_packet;
+    slot_of_first_.assign(static_cast<size_t>(recording.metadata.format.columns_per_frame / cpp), -1);
+    for (size_t i = 0; i < sent_.size(); ++i) slot_of_first_[static_cast<size_t>(sent_[i] / cpp)] = static_cast<int>(i);
+  }
+
+  void encode(uint64_t frame, double frame_start_s, EncodedFrame& out) {
+    const size_t size = packets_.lidar_packet_size();
+    const int cpp = recording_.metadata.format.columns_per_packet;
+    out.bytes.resize(sent_.size() * size);
+    const PacketHeader header = frame_header(recording_.metadata, frame);
+    renderer_.render(frame, frame_start_s, recording_.trajectory, 0, scan_.width, scan_, [&](int begin, int) {
+      const int slot = slot_of_first_[static_cast<size_t>(begin / cpp)];
+      if (slot < 0) return;  // no column of this packet in the window (6.4): not sent
+      packets_.encode(header, scan_, begin, std::span<uint8_t>(out.bytes.data() + static_cast<size_t>(slot) * size, size));
+    });
+    // A packet leaves once its last column is measured (protocol doc 1, 6.1).
+    out.times_ns.clear();
+    for (const int first : sent_) out.times_ns.push_back(scan_.timestamp_ns[static_cast<size_t>(first + cpp - 1)]);
+  }
+  size_t packet_size() const { return packets_.lidar_packet_size(); }
+
+ private:
+  const Recording& recording_;
+  PacketFormat packets_;
+  FrameRenderer renderer_;
+  std::vector<int> sent_;
+  std::vector<int> slot_of_first_;  // packet index in the frame -> slot in EncodedFrame, -1 = not sent
+  Scan scan_;
+};
+
+void write_frame(CaptureWriter& capture, const EncodedFrame& frame, size_t packet_size) {
+  for (size_t i = 0; i < frame.times_ns.size(); ++i) {
+    capture.write_lidar({frame.bytes.data() + i * packet_size, packet_size}, frame.times_ns[i]);
+  }
+}
+
 }  // namespace
 
+// Frame k + 1 renders while frame k is written to the capture (two buffers).
 void record(const Recording& recording, const std::function<void(int frames_done)>& progress) {
   const LidarDataFormat& format = recording.metadata.format;
   std::filesystem::create_directories(recording.out_dir);
   write_metadata(recording.metadata, recording.out_dir / "metadata.json");
-  const PacketFormat packets(format);
-  const FrameRenderer renderer(recording.scene, recording.profile, recording.chain, format, recording.render);
+  FrameEncoder encoder(recording);
   CaptureWriter capture(recording, recording.out_dir / "capture.pcap");
-
-  const std::vector<int> sent = packets_to_send(format);  // only packets meeting the window (6.4)
-  const int cpp = format.columns_per_packet;
-  const size_t size = packets.lidar_packet_size();
-  std::vector<uint8_t> bytes(static_cast<size_t>(format.columns_per_frame / cpp) * size);
-  Scan scan(format);
+  std::array<EncodedFrame, 2> buffers;
+  std::future<void> writing;
   std::vector<StampedPose> poses;
   for (int k = 0; k < recording.frames; ++k) {
-    const auto frame = static_cast<uint64_t>(k);
     const double frame_start_s = recording.trajectory.start_s() + k / static_cast<double>(format.fps);
-    const PacketHeader header = frame_header(recording.metadata, frame);
-    // Each packet is encoded (with its CRC) by the worker that finished its columns.
-    renderer.render(frame, frame_start_s, recording.trajectory, 0, format.columns_per_frame, scan,
-                    [&](int begin, int) {
-                      const auto slot = static_cast<size_t>(begin / cpp);
-                      packets.encode(header, scan, begin, std::span<uint8_t>(bytes.data() + slot * size, size));
-                    });
-    // A packet leaves once its last column is measured (protocol doc 1, 6.1).
-    for (const int first : sent) {
-      const auto slot = static_cast<size_t>(first / cpp);
-      capture.write_lidar({bytes.data() + slot * size, size}, scan.timestamp_ns[static_cast<size_t>(first + cpp - 1)]);
-    }
+    EncodedFrame& frame = buffers[static_cast<size_t>(k % 2)];
+    encoder.encode(static_cast<uint64_t>(k), frame_start_s, frame);
+    if (writing.valid()) writing.get();  // frame k - 1 written: its buffer is free again
+    writing = std::async(std::launch::async, [&capture, &frame, &encoder] { write_frame(capture, frame, encoder.packet_size()); });
     poses.push_back({frame_start_s, recording.trajectory.at(frame_start_s)});
     progress(k + 1);
   }
+  if (writing.valid()) writing.get();
   capture.write_imu_until(to_ns(recording.trajectory.start_s() + recording.frames / static_cast<double>(format.fps)));
   write_tum(recording.out_dir / "poses.tum", poses);
 }
