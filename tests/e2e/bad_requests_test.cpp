@@ -89,7 +89,7 @@ TEST(BadRequests, StreamGoesOnAndConfigIsUnchanged) {
     EXPECT_GE(result->status, 400) << body.substr(0, 60);
     EXPECT_LT(result->status, 500) << body.substr(0, 60);
   }
-  for (const std::string path : {"/api/v1/no/such/endpoint", "/api/v1/sensor/cmd/set_config_param?args=lidar_mode+999x10",
+  for (const std::string path : {"/api/v1/no/such/endpoint", "/api/v1/sensor/cmd/get_config_param?args=nonsense",
                                  "/api/v1/sensor/metadata/no_such_section"}) {
     const auto result = http.raw_get(path);
     ASSERT_TRUE(result) << path;
