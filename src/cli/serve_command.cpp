@@ -1,7 +1,11 @@
 // `lidartwin serve`: the daemon. A Sensor (state machine) behind the HTTP API, and a Streamer that
 // follows the sensor's active config; Ctrl-C or SIGTERM stops both and exits 0.
 #include <algorithm>
+#include <condition_variable>
 #include <csignal>
+#include <mutex>
+#include <stop_token>
+#include <thread>
 #include <iostream>
 
 #include <pthread.h>
@@ -42,7 +46,19 @@ int report_bind_error(const BindError& error) {
 // Runs until SIGINT/SIGTERM: the signal stops the streamer, which leaves the io_context without
 // work, so run() returns; then the HTTP server is stopped and the subscription dropped.
 int run_daemon(asio::io_context& io, Sensor& sensor, HttpServer& http, Streamer& streamer) {
-  streamer.on_stats([&sensor](const StreamStats& stats) { sensor.set_stream_stats(stats); });
+  // Stats go to the sensor from a thread of their own: the send clock must never wait for the
+  // sensor's lock, which HTTP threads hold.
+  std::jthread stats_pump([&sensor, &streamer](std::stop_token stop) {
+    const sched_param normal{};
+    pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);  // not the clock's SCHED_FIFO
+    std::mutex mutex;
+    std::condition_variable_any tick;
+    std::unique_lock lock(mutex);
+    while (!tick.wait_for(lock, stop, std::chrono::seconds(1), [] { return false; })) {
+      if (stop.stop_requested()) break;
+      sensor.set_stream_stats(streamer.stats());
+    }
+  });
   const int subscription = sensor.subscribe([&streamer](const Sensor::StreamConfigPtr& config) { streamer.apply(config); });
   asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&streamer](const asio::error_code& error, int signal_number) {
@@ -53,6 +69,7 @@ int run_daemon(asio::io_context& io, Sensor& sensor, HttpServer& http, Streamer&
   // The send clock's wake-ups should not be rounded up by the default 50 us timer slack.
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   io.run();
+  stats_pump.request_stop();
   sensor.unsubscribe(subscription);
   http.stop();
   spdlog::info("serve: stopped");

@@ -1,6 +1,7 @@
 #include "streamer/render_ahead.h"
 
 #include <algorithm>
+#include <chrono>
 
 #include <pthread.h>
 #include <sched.h>
@@ -17,6 +18,7 @@ namespace {
 // Columns cast per render call: small enough that the first packets of a frame are ready long
 // before the frame is done, large enough to keep the renderer's pool busy.
 constexpr int kColumnsPerChunk = 128;
+constexpr std::chrono::milliseconds kRecheck{2};
 
 // Threads inherit the scheduling policy of their creator: the io thread may run the send clock as
 // SCHED_FIFO, which the worker and the renderer's pool (created from the worker) must not.
@@ -79,21 +81,22 @@ std::span<const uint8_t> RenderAhead::packet(uint64_t frame, size_t index) const
   return {slot.bytes.data() + index * size, size};
 }
 
+// Called by the send clock, which must never wait for the worker: no lock is taken (a lock held by
+// a preempted worker would stall a real-time sender). A wake-up lost between the worker's check
+// and its wait costs at most kRecheck, well within the frames it renders ahead.
 void RenderAhead::finished(uint64_t frame) {
-  {
-    std::lock_guard lock(mutex_);
-    next_needed_.store(frame + 1, std::memory_order_release);
-  }
+  next_needed_.store(frame + 1, std::memory_order_release);
   wake_.notify_all();
 }
 
 bool RenderAhead::wait_for_room(uint64_t& frame) {
   std::unique_lock lock(mutex_);
   // A frame's slot is free once the sender finished the frame that used it slots_.size() ago.
-  wake_.wait(lock, [&] {
+  const auto room = [&] {
     frame = std::max(frame, next_needed_.load(std::memory_order_acquire));
     return stopping_ || frame < next_needed_.load(std::memory_order_acquire) + slots_.size();
-  });
+  };
+  while (!room()) wake_.wait_for(lock, kRecheck);
   return !stopping_;
 }
 

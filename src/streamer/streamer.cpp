@@ -70,7 +70,10 @@ void Streamer::apply(std::shared_ptr<const StreamConfig> config) {
   asio::post(io_, [this, config = std::move(config)]() mutable { switch_to(std::move(config)); });
 }
 
-void Streamer::on_stats(std::function<void(const StreamStats&)> callback) { stats_callback_ = std::move(callback); }
+StreamStats Streamer::stats() const {
+  std::lock_guard lock(snapshot_mutex_);
+  return snapshot_;
+}
 
 void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
   if (stopped_ || !config) return;

@@ -38,7 +38,7 @@ void Streamer::report_stats() {
                   stats.render_load);
     counters_->recent_lateness = {};
   }
-  if (stats_callback_) stats_callback_(stats);
+  if (std::unique_lock lock(snapshot_mutex_, std::try_to_lock); lock) snapshot_ = stats;
 }
 
 void Streamer::warn_if_behind(double render_load) {

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
 
 #include <asio.hpp>
 
@@ -57,8 +58,9 @@ class Streamer {
   // Any thread. A config with a new generation restarts the stream (new format, init_id and
   // frame_id sequence); streaming=false (STANDBY) stops it; port 0 turns that stream off.
   void apply(std::shared_ptr<const StreamConfig> config);
-  // Called on the io thread once a second. Set before io_context::run().
-  void on_stats(std::function<void(const StreamStats&)> callback);
+  // Any thread: the stats as of the last once-a-second update. The send clock never waits for a
+  // reader (it skips an update rather than block), so a reader may be up to a second behind.
+  StreamStats stats() const;
   // Io thread (or before run): cancels the clocks, joins the render worker, closes the socket,
   // so that io_context::run() can return.
   void stop();
@@ -81,7 +83,8 @@ class Streamer {
   std::unique_ptr<streamer_detail::UdpSender> sender_;
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
   asio::steady_timer stats_timer_;
-  std::function<void(const StreamStats&)> stats_callback_;
+  mutable std::mutex snapshot_mutex_;
+  StreamStats snapshot_;  // guarded by snapshot_mutex_
   std::shared_ptr<const StreamConfig> config_;                // the one being streamed
   std::shared_ptr<streamer_detail::StreamSession> session_;   // null in STANDBY or when stopped
   int64_t next_stats_ns_ = 0;  // steady clock
