@@ -46,7 +46,13 @@ EffectChain ideal_chain(const SensorProfile& profile) {
 
 Trajectory load_trajectory(const RecordFlags& flags) {
   if (flags.trajectory.empty() == flags.pose.empty()) throw InputError("record: give one of --trajectory or --pose");
-  if (!flags.pose.empty()) return Trajectory::constant(parse_pose(flags.pose));
+  if (!flags.pose.empty()) {
+    try {
+      return Trajectory::constant(parse_pose(flags.pose));
+    } catch (const InputError& e) {
+      throw InputError(std::string("--pose: ") + e.what());
+    }
+  }
   Trajectory trajectory = Trajectory::load_tum(flags.trajectory);  // loops: closed flights repeat
   if (trajectory.start_s() < 0.0) {
     throw InputError("--trajectory " + flags.trajectory + ": starts at a negative time (" +
