@@ -113,6 +113,21 @@ TEST_F(RecordGeometry, Os0PointsLieOnTheHall) {
   expect_on_surfaces(check(out, static_pose(out), 0.3, 45.0), 2 * 1024 * 64);
 }
 
+// 5.1: LEGACY IMU at 100 Hz on the lidar's clock; at rest it reads +1 g along Z and no rotation.
+TEST_F(RecordGeometry, ImuAtRestReadsGravity) {
+  const auto out = record("imu", "--profile os1-64 --mode 1024x10 " + kHallPose);
+  const auto capture = test::decode_capture(out);
+  ASSERT_EQ(capture.imu.size(), 21u);  // t = 0, 0.01, ..., 0.20 s: two frames and their end
+  for (size_t i = 0; i < capture.imu.size(); ++i) {
+    const ImuSample& s = capture.imu[i];
+    EXPECT_EQ(s.sys_ts_ns, i * 10'000'000u);
+    EXPECT_NEAR(static_cast<double>(s.accel_g[2]), 1.0, 1e-6);
+    for (const float v : {s.accel_g[0], s.accel_g[1], s.gyro_deg_s[0], s.gyro_deg_s[1], s.gyro_deg_s[2]}) {
+      EXPECT_NEAR(static_cast<double>(v), 0.0, 1e-6);
+    }
+  }
+}
+
 TEST_F(RecordGeometry, Os1PointsLieOnTheHallInLegacyPackets) {
   const auto out = record("os1", "--profile os1-64 --mode 2048x10 --udp-profile LEGACY " + kHallPose);
   expect_on_surfaces(check(out, static_pose(out), 0.3, 100.0), 2 * 2048 * 64);

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/metadata/metadata.h"
+#include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/pcap/pcap.h"
 
@@ -84,6 +85,7 @@ struct DecodedCapture {
   std::map<uint32_t, Scan> frames;  // by frame_id
   size_t lidar_packets = 0;
   size_t imu_packets = 0;
+  std::vector<ImuSample> imu;  // LEGACY IMU packets (port 7503), decoded
 };
 
 inline DecodedCapture decode_capture(const std::filesystem::path& dir) {
@@ -92,7 +94,10 @@ inline DecodedCapture decode_capture(const std::filesystem::path& dir) {
   const PacketFormat format(capture.metadata.format);
   Scan probe(capture.metadata.format);  // first pass: which frame the packet belongs to
   for (const UdpDatagram& datagram : read_pcap(dir / "capture.pcap")) {
-    if (datagram.dst_port == 7503) ++capture.imu_packets;
+    if (datagram.dst_port == 7503) {
+      ++capture.imu_packets;
+      if (const auto sample = decode_legacy_imu(datagram.payload)) capture.imu.push_back(*sample);
+    }
     if (datagram.dst_port != 7502) continue;
     ++capture.lidar_packets;
     std::string error;
