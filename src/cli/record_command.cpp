@@ -12,6 +12,7 @@
 #include "cli/recorder.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
+#include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/random/counter_rng.h"
 
 namespace lidartwin::cli {
@@ -87,7 +88,9 @@ Metadata make_record_metadata(const RecordFlags& flags, const SensorProfile& pro
   // 24 bits, never 0, a pure function of the seed (6.2).
   info.initialization_id = static_cast<uint32_t>(rng_detail::mix64(flags.seed ^ 0x696E69745F6964ULL) % 0xFFFFFFu) + 1;
   try {
-    return make_metadata(info, profile.beams, config);
+    Metadata metadata = make_metadata(info, profile.beams, config);
+    const PacketFormat validated(metadata.format);  // e.g. a packet larger than a datagram
+    return metadata;
   } catch (const InputError& e) {
     throw InputError(std::string("--mode/--udp-profile/--columns-per-packet: ") + e.what());
   }

@@ -26,8 +26,12 @@ struct Recording {
 };
 
 // Times: frame k starts at trajectory time t0 + k / fps (t0 = trajectory.start_s()); column m of it
-// at that + m / (W * fps). Every timestamp in the capture (column timestamps, IMU sys_ts, pcap
-// record times) is that trajectory time in ns, so the capture and poses.tum share one clock.
+// is observed at that + m / (W * fps) (protocol doc 6.1) and cast from the pose at that time.
+// Every timestamp in the capture (column timestamps, IMU sys_ts, pcap record times) is that
+// trajectory time in ns, so the capture and poses.tum share one clock. A lidar packet's pcap time
+// is its last column's timestamp (when it would leave the sensor).
+// poses.tum: one row per frame, world_from_sensor at the frame's start time t0 + k / fps, which is
+// the time of its column m = 0 (and that column's timestamp, in seconds).
 // progress(frames_done) is called after each frame.
 void record(const Recording& recording, const std::function<void(int frames_done)>& progress);
 
