@@ -129,6 +129,7 @@ int serve(const ServeFlags& flags) {
   options.render.seed = flags.seed;
   options.render.threads = flags.threads;
   options.record_dir = flags.record_dir;
+  options.spin_us = flags.spin_us;
   Streamer streamer(io, scene, profile, std::move(chain), std::move(trajectory), options);
   return run_daemon(io, sensor, http, streamer);
 }
@@ -170,6 +171,9 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--udp-profile", flags->udp_profile, "initial udp_profile_lidar")->check(udp_profile_validator());
   sub->add_option("--state-file", flags->state_file, "where persisted config and user data live");
   sub->add_option("--threads", flags->threads, "ray casting threads (0 = all cores)")->check(CLI::Range(0, 1024));
+  sub->add_option("--spin-us", flags->spin_us, "wake this early and spin to each packet's deadline (0 = sleep only)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   sub->add_option("--log-level", flags->log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();

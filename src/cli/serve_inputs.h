@@ -27,6 +27,7 @@ struct ServeFlags {
   std::string udp_profile;  // likewise
   std::string state_file;
   int threads = 0;
+  int spin_us = 100;
   std::string log_level = "info";
 };
 

@@ -38,7 +38,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   // counters must outlive the session (the Streamer owns them).
   StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
                 std::shared_ptr<const StreamConfig> config, const Trajectory& trajectory, SessionTiming timing,
-                std::unique_ptr<RenderAhead> render, bool send_imu);
+                std::unique_ptr<RenderAhead> render, bool send_imu, int64_t spin_ns);
   void start();
   void stop();  // cancels both clocks and joins the render worker
   uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }
@@ -63,6 +63,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   SessionTiming timing_;
   std::unique_ptr<RenderAhead> render_;
   bool send_imu_ = false;
+  int64_t spin_ns_ = 0;  // wake this much before a lidar deadline, then spin to it
   std::vector<int> packet_columns_;
   std::unique_ptr<PacketFormat> packet_format_;  // for blank packets; null without lidar
   Scan blank_scan_;                             // all columns invalid; timestamps set per packet

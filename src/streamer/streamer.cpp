@@ -131,7 +131,8 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
   spdlog::info("streamer: IMU to {}", describe(asio::ip::address_v4(config->udp_dest), imu ? config->udp_port_imu : 0));
   write_record_metadata(options_.record_dir, *config);
   session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config), trajectory_,
-                                                              timing, std::move(render), imu);
+                                                              timing, std::move(render), imu,
+                                                              int64_t{options_.spin_us} * 1000);
   session_->start();
 }
 

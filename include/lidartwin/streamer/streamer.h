@@ -31,8 +31,11 @@ struct StreamerOptions {
   RenderConfig render;                 // seed and threads; signal_gain comes from each config
   std::filesystem::path record_dir;    // non-empty: capture.pcap + metadata.json of what is sent
   int frames_ahead = 2;                // how far casting may run ahead of the send clock
-  double start_delay_s = 0.15;         // from a reinit to frame 0: time to cast the first packets
+  double start_delay_s = 0.25;         // from a reinit to frame 0: time to cast the first packets
   int render_nice = 0;                 // nice value of the casting threads (the send clock keeps 0)
+  // The send clock wakes this early and spins to each lidar deadline: a thread's wake-up takes
+  // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10).
+  int spin_us = 100;
 };
 
 // Column timestamps (6.3): TIME_FROM_INTERNAL_OSC and TIME_FROM_SYNC_PULSE_IN carry the host's
