@@ -7,6 +7,7 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/metadata/metadata.h"
+#include "lidartwin/streamer/packet_schedule.h"
 #include "streamer/render_ahead.h"
 #include "streamer/stream_counters.h"
 #include "streamer/stream_session.h"
@@ -93,41 +94,48 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
   }
 }
 
-void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
-  const LidarDataFormat& format = config->metadata.format;
-  const bool lidar = config->udp_port_lidar != 0;
-  const bool imu = config->udp_port_imu != 0 && format.udp_profile_imu == UdpProfileImu::kLegacy;
-  if (config->udp_port_imu != 0 && format.udp_profile_imu == UdpProfileImu::kAccel32Gyro32Nmea) {
-    spdlog::warn("streamer: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent");
-  }
-
+SessionTiming Streamer::session_timing(const StreamConfig& config) const {
+  const LidarDataFormat& format = config.metadata.format;
   SessionTiming timing;
   timing.clock = {format.columns_per_frame, format.fps};
   timing.start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
-  timing.timestamp_offset_ns = timestamp_offset_ns(*config);
-  timing.trajectory_start_s = trajectory_.start_s() + static_cast<double>(timing.start_steady_ns - daemon_start_ns_) * 1e-9;
+  timing.timestamp_offset_ns = timestamp_offset_ns(config);
+  timing.trajectory_start_s =
+      trajectory_.start_s() + static_cast<double>(timing.start_steady_ns - daemon_start_ns_) * 1e-9;
+  return timing;
+}
 
-  std::unique_ptr<RenderAhead> render;
-  if (lidar) {
-    PacketFormat packet_format(format);  // throws InputError naming a format it cannot encode
-    RenderConfig render_config = options_.render;
-    render_config.signal_gain = config->signal_multiplier;
-    // The renderer may keep references to profile and format: both outlive it (Streamer member,
-    // and the config the factory holds).
-    auto make_renderer = [this, config, render_config] {
-      return std::make_unique<FrameRenderer>(scene_, profile_, chain_, config->metadata.format, render_config);
-    };
-    PacketHeader header;
-    header.init_id = config->init_id;
-    header.prod_sn = config->prod_sn;
-    render = std::make_unique<RenderAhead>(make_renderer, packet_format, trajectory_, timing, header,
-                                           options_.frames_ahead, options_.render_nice);
-    spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
-                 to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
-                 render->packet_columns().size(), packet_format.lidar_packet_size(),
-                 asio::ip::address_v4(options_.source_address).to_string(), sender_->source_port(),
-                 describe(asio::ip::address_v4(config->udp_dest), config->udp_port_lidar), config->init_id);
+std::unique_ptr<RenderAhead> Streamer::start_rendering(std::shared_ptr<const StreamConfig> config,
+                                                       const SessionTiming& timing) {
+  const LidarDataFormat& format = config->metadata.format;
+  PacketFormat packet_format(format);  // throws InputError naming a format it cannot encode
+  RenderConfig render_config = options_.render;
+  render_config.signal_gain = config->signal_multiplier;
+  PacketHeader header;
+  header.init_id = config->init_id;
+  header.prod_sn = config->prod_sn;
+  spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
+               to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
+               packets_to_send(format).size(), packet_format.lidar_packet_size(),
+               asio::ip::address_v4(options_.source_address).to_string(), sender_->source_port(),
+               describe(asio::ip::address_v4(config->udp_dest), config->udp_port_lidar), config->init_id);
+  // The renderer may keep references to profile and format: both outlive it (a Streamer member,
+  // and the config the factory holds).
+  auto make_renderer = [this, config, render_config] {
+    return std::make_unique<FrameRenderer>(scene_, profile_, chain_, config->metadata.format, render_config);
+  };
+  return std::make_unique<RenderAhead>(make_renderer, packet_format, trajectory_, timing, header,
+                                       options_.frames_ahead, options_.render_nice);
+}
+
+void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
+  const UdpProfileImu imu_profile = config->metadata.format.udp_profile_imu;
+  const bool imu = config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kLegacy;
+  if (config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kAccel32Gyro32Nmea) {
+    spdlog::warn("streamer: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent");
   }
+  const SessionTiming timing = session_timing(*config);
+  std::unique_ptr<RenderAhead> render = config->udp_port_lidar != 0 ? start_rendering(config, timing) : nullptr;
   spdlog::info("streamer: IMU to {}", describe(asio::ip::address_v4(config->udp_dest), imu ? config->udp_port_imu : 0));
   write_record_metadata(options_.record_dir, *config);
   session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config), trajectory_,

@@ -23,6 +23,8 @@ namespace lidartwin {
 namespace streamer_detail {
 class UdpSender;
 class StreamSession;
+class RenderAhead;
+struct SessionTiming;
 struct StreamCounters;
 }  // namespace streamer_detail
 
@@ -71,6 +73,9 @@ class Streamer {
  private:
   void switch_to(std::shared_ptr<const StreamConfig> config);
   void start_session(std::shared_ptr<const StreamConfig> config);
+  streamer_detail::SessionTiming session_timing(const StreamConfig& config) const;
+  std::unique_ptr<streamer_detail::RenderAhead> start_rendering(std::shared_ptr<const StreamConfig> config,
+                                                                const streamer_detail::SessionTiming& timing);
   void stop_session();
   void arm_stats_timer();
   void report_stats();
