@@ -20,7 +20,7 @@ namespace lidartwin {
 namespace {
 
 const std::filesystem::path kSample =
-    "/work/shared/data/ouster-samples/OS-1-128_767798045_1024x10_20230712_120049.json";
+    LIDARTWIN_TEST_DATA "/ouster-samples/OS-1-128_767798045_1024x10_20230712_120049.json";
 
 // The real OS-1-128 metadata read directly (nested FW 3.x keys), so this test does not depend on
 // the metadata module.
