@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "cli/command.h"
+#include "cli/format_validators.h"
 #include "cli/recorder.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
@@ -134,25 +135,6 @@ int run_record(const RecordFlags& flags) {
   return 0;
 }
 
-CLI::Validator lidar_mode_check() {
-  return CLI::Validator(
-      [](std::string& value) -> std::string {
-        return parse_lidar_mode(value) ? "" : "expected WIDTHxRATE with width 512/1024/2048/4096, e.g. 1024x10";
-      },
-      "MODE");
-}
-
-CLI::Validator udp_profile_check() {
-  return CLI::Validator(
-      [](std::string& value) -> std::string {
-        if (udp_profile_lidar_from_string(value)) return "";
-        std::string names;
-        for (const auto name : udp_profile_lidar_names()) names += (names.empty() ? "" : ", ") + std::string(name);
-        return "expected one of " + names;
-      },
-      "PROFILE");
-}
-
 void setup_record(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<RecordFlags>();
   CLI::App* sub = app.add_subcommand("record", "Render a capture offline: DIR/capture.pcap, metadata.json, poses.tum");
@@ -161,8 +143,8 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
   auto* trajectory = sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (loops if shorter than the capture)")
                          ->check(CLI::ExistingFile);
   sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\" (world frame, Z up)")->excludes(trajectory);
-  sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")->check(lidar_mode_check())->capture_default_str();
-  sub->add_option("--udp-profile", flags->udp_profile, "udp_profile_lidar")->check(udp_profile_check())->capture_default_str();
+  sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")->check(lidar_mode_validator())->capture_default_str();
+  sub->add_option("--udp-profile", flags->udp_profile, "udp_profile_lidar")->check(udp_profile_validator())->capture_default_str();
   sub->add_option("--frames", flags->frames, "frames to record")->check(CLI::Range(1, 10'000'000))->capture_default_str();
   sub->add_option("--seed", flags->seed, "noise seed (also sets initialization_id)")->capture_default_str();
   sub->add_option("--out", flags->out, "output directory (created)")->required();

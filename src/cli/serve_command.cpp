@@ -17,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "cli/command.h"
+#include "cli/format_validators.h"
 #include "cli/serve_inputs.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/error.h"
@@ -132,25 +133,6 @@ int serve(const ServeFlags& flags) {
   options.spin_us = flags.spin_us;
   Streamer streamer(io, scene, profile, std::move(chain), std::move(trajectory), options);
   return run_daemon(io, sensor, http, streamer);
-}
-
-CLI::Validator lidar_mode_validator() {
-  return CLI::Validator(
-      [](std::string& value) -> std::string {
-        return parse_lidar_mode(value) ? "" : "expected WIDTHxRATE with width 512/1024/2048/4096, e.g. 1024x10";
-      },
-      "MODE");
-}
-
-CLI::Validator udp_profile_validator() {
-  return CLI::Validator(
-      [](std::string& value) -> std::string {
-        if (udp_profile_lidar_from_string(value)) return "";
-        std::string names;
-        for (const auto name : udp_profile_lidar_names()) names += (names.empty() ? "" : ", ") + std::string(name);
-        return "expected one of " + names;
-      },
-      "PROFILE");
 }
 
 void setup_serve(CLI::App& app, std::function<int()>& run) {

@@ -1,0 +1,28 @@
+#include "cli/format_validators.h"
+
+#include <string>
+
+#include "lidartwin/packet/data_format.h"
+
+namespace lidartwin::cli {
+
+CLI::Validator lidar_mode_validator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        return parse_lidar_mode(value) ? "" : "expected WIDTHxRATE with width 512/1024/2048/4096, e.g. 1024x10";
+      },
+      "MODE");
+}
+
+CLI::Validator udp_profile_validator() {
+  return CLI::Validator(
+      [](std::string& value) -> std::string {
+        if (udp_profile_lidar_from_string(value)) return "";
+        std::string names;
+        for (const auto name : udp_profile_lidar_names()) names += (names.empty() ? "" : ", ") + std::string(name);
+        return "expected one of " + names;
+      },
+      "PROFILE");
+}
+
+}  // namespace lidartwin::cli
