@@ -349,3 +349,25 @@ TEST(MakeMetadata, NamesTheBadConfigKey) {
 
 }  // namespace
 }  // namespace lidartwin
+
+
+namespace lidartwin {
+namespace {
+// lidar_frame_azimuth_offset (FW 3.2 POST config docs): 90000 rotates the lidar frame 90 deg
+// counter-clockwise, so the first column (lidar +X) points at sensor azimuth 270 deg (-Y) instead of
+// 180 deg (-X). The served lidar_to_sensor_transform carries it; zero changes nothing.
+TEST(MakeMetadata, LidarFrameAzimuthOffsetRotatesTheServedLidarFrame) {
+  const Metadata base = load_metadata(kDocExample);
+  const Metadata unrotated = make_metadata(base.sensor_info, base.beams, {{"lidar_frame_azimuth_offset", 0}});
+  EXPECT_EQ(unrotated.beams.lidar_to_sensor, base.beams.lidar_to_sensor);
+  const Metadata rotated = make_metadata(base.sensor_info, base.beams, {{"lidar_frame_azimuth_offset", 90000}});
+  const auto& T = rotated.beams.lidar_to_sensor;
+  EXPECT_NEAR(T[0], 0.0, 1e-12);   // image of lidar +X: (T[0], T[4], T[8]) = sensor -Y
+  EXPECT_NEAR(T[4], -1.0, 1e-12);
+  EXPECT_NEAR(T[8], 0.0, 1e-12);
+  EXPECT_EQ(T[11], base.beams.lidar_to_sensor[11]);  // translation unchanged
+  EXPECT_EQ(parse_metadata(to_nested_json(rotated), "rotated").beams, rotated.beams);
+}
+
+}  // namespace
+}  // namespace lidartwin

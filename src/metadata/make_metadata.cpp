@@ -104,6 +104,26 @@ nlohmann::json imu_data_format(const JsonReader& reader, const nlohmann::json& c
   return {{"accel_fsr", string_at(reader, config, "accel_fsr")}, {"gyro_fsr", string_at(reader, config, "gyro_fsr")}};
 }
 
+// lidar_frame_azimuth_offset (FW 3.2 POST config docs): "a 90000 offset rotates the lidar
+// coordinate frame 90 deg counter-clockwise about Z; the measurement frame then starts at sensor
+// azimuth 270 deg". We report it in lidar_to_sensor_transform, the only thing the SDK's XYZ reads
+// (inferred; not checked on a FW 3.2 unit): T' = T * Rz(offset), translation unchanged, so with the
+// default T column m = 0 moves from sensor azimuth 180 deg to 270 deg for an offset of 90000.
+Mat4 rotate_lidar_frame(const Mat4& lidar_to_sensor, const nlohmann::json& config) {
+  const auto it = config.find("lidar_frame_azimuth_offset");
+  if (it == config.end() || !it->is_number() || it->get<double>() == 0.0) return lidar_to_sensor;
+  const double angle = it->get<double>() * 1e-3 * 3.14159265358979323846 / 180.0;
+  const double c = std::cos(angle), s = std::sin(angle);
+  Mat4 rotated = lidar_to_sensor;
+  for (int row = 0; row < 3; ++row) {
+    const double x = lidar_to_sensor[static_cast<size_t>(row * 4)];
+    const double y = lidar_to_sensor[static_cast<size_t>(row * 4 + 1)];
+    rotated[static_cast<size_t>(row * 4)] = x * c + y * s;
+    rotated[static_cast<size_t>(row * 4 + 1)] = -x * s + y * c;
+  }
+  return rotated;
+}
+
 }  // namespace
 
 Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beams, const nlohmann::json& config_params) {
@@ -118,6 +138,7 @@ Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beam
   Metadata metadata;
   metadata.sensor_info = sensor_info;
   metadata.beams = beams;
+  metadata.beams.lidar_to_sensor = rotate_lidar_frame(beams.lidar_to_sensor, config);
   metadata.format = format_from_config(reader, config, beams);
   metadata.imu_data_format = imu_data_format(reader, config, metadata.format);
   // A factory-calibrated sensor (the timestamp is the one of protocol doc 3.5).

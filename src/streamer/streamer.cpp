@@ -122,7 +122,10 @@ std::unique_ptr<RenderAhead> Streamer::start_rendering(std::shared_ptr<const Str
   // The renderer may keep references to profile and format: both outlive it (a Streamer member,
   // and the config the factory holds).
   auto make_renderer = [this, config, render_config] {
-    return std::make_unique<FrameRenderer>(scene_, profile_, chain_, config->metadata.format, render_config);
+    // Cast with the intrinsics the client is served (lidar_frame_azimuth_offset rotates them).
+    SensorProfile served = profile_;
+    served.beams = config->metadata.beams;
+    return std::make_unique<FrameRenderer>(scene_, served, chain_, config->metadata.format, render_config);
   };
   return std::make_unique<RenderAhead>(make_renderer, packet_format, trajectory_, timing, header,
                                        options_.frames_ahead, options_.render_nice);
