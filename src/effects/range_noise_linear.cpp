@@ -4,6 +4,7 @@
 // The paper defines sigma only up to r_max (45 m OS0, 100 m OS1); beyond it we keep extrapolating
 // the same line, so a profile whose range limit exceeds r_max still gets a continuous law.
 #include "effects/builtin_effects.h"
+#include "effects/gaussian_range_noise.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -15,7 +16,8 @@ struct LinearNoiseParameters {
   double range_max_m = 1.0;  // r_max (paper: 45 m OS0, 100 m OS1)
 };
 
-class RangeNoiseLinear final : public TabledEffect<RangeNoiseLinear, LinearNoiseParameters> {
+class RangeNoiseLinear final
+    : public GaussianRangeNoise<RangeNoiseLinear, TabledEffect<RangeNoiseLinear, LinearNoiseParameters>> {
  public:
   using P = LinearNoiseParameters;
   static constexpr std::string_view kName = "range_noise_linear";
@@ -25,26 +27,10 @@ class RangeNoiseLinear final : public TabledEffect<RangeNoiseLinear, LinearNoise
       {"range_max_m", &P::range_max_m, {0.1, 10000.0}, true},
   }};
 
-  explicit RangeNoiseLinear(const P& p) : TabledEffect(p), slope_((p.sigma_max_m - p.sigma0_m) / p.range_max_m) {}
+  explicit RangeNoiseLinear(const P& p) : GaussianRangeNoise(p), slope_((p.sigma_max_m - p.sigma0_m) / p.range_max_m) {}
 
   // sigma(r) of the true range; clamped at 0 in case sigma_max < sigma0 extrapolates below zero.
   double sigma(float range_m) const { return std::max(0.0, params().sigma0_m + slope_ * static_cast<double>(range_m)); }
-
-  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
-                std::span<Measurement> measured) const override {
-    const ColumnStreams streams = column_streams(context);
-    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
-      Measurement& m = measured[beam];
-      if (m.range_m == 0.0f) continue;  // no return (a negative noisy range still counts)
-      const double noise = sigma(ideal[beam].range_m) * streams(beam).normal_ziggurat(0);
-      m.range_m = static_cast<float>(static_cast<double>(m.range_m) + noise);
-    }
-  }
-
-  void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
-    const double s = sigma(ideal.range_m);
-    prediction.variance_m2 += s * s;
-  }
 
  private:
   double slope_;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "effects/builtin_effects.h"
+#include "effects/gaussian_range_noise.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -58,7 +59,7 @@ std::vector<Knot> read_knots(const nlohmann::json& params, std::string_view sour
   return knots;
 }
 
-class RangeNoisePiecewise final : public Effect {
+class RangeNoisePiecewise final : public GaussianRangeNoise<RangeNoisePiecewise, Effect> {
  public:
   static constexpr std::string_view kName = "range_noise_piecewise";
 
@@ -79,22 +80,6 @@ class RangeNoisePiecewise final : public Effect {
     if (r >= knots_.back().range_m) return knots_.back().sigma_m;
     const size_t k = segment_scan(first_segment_[bucket(range_m)], r);
     return knots_[k].sigma_m + slopes_[k] * (r - knots_[k].range_m);
-  }
-
-  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
-                std::span<Measurement> measured) const override {
-    const ColumnStreams streams = column_streams(context);
-    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
-      Measurement& m = measured[beam];
-      if (m.range_m == 0.0f) continue;  // no return (a negative noisy range still counts)
-      const double noise = sigma(ideal[beam].range_m) * streams(beam).normal_ziggurat(0);
-      m.range_m = static_cast<float>(static_cast<double>(m.range_m) + noise);
-    }
-  }
-
-  void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
-    const double s = sigma(ideal.range_m);
-    prediction.variance_m2 += s * s;
   }
 
   // Knot ranges are structure (fixed); the sigmas are what a fit adjusts.

@@ -1,0 +1,35 @@
+#pragma once
+// Zero-mean Gaussian noise along the beam with a range-dependent sigma (E1; the paper's Section
+// III model and its piecewise datasheet form). Derived supplies `double sigma(float range_m) const`
+// of the TRUE range; simulate and predict are written once here so they cannot drift apart.
+#include <cstdint>
+#include <span>
+
+#include "lidartwin/effects/effect.h"
+
+namespace lidartwin {
+
+template <class Derived, class Base>
+class GaussianRangeNoise : public Base {
+ public:
+  using Base::Base;
+
+  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
+                std::span<Measurement> measured) const override {
+    const auto& self = static_cast<const Derived&>(*this);
+    const ColumnStreams streams = this->column_streams(context);
+    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
+      Measurement& m = measured[beam];
+      if (m.range_m == 0.0f) continue;  // no return (a negative noisy range still counts)
+      const double noise = self.sigma(ideal[beam].range_m) * streams(beam).normal_ziggurat(0);
+      m.range_m = static_cast<float>(static_cast<double>(m.range_m) + noise);
+    }
+  }
+
+  void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
+    const double s = static_cast<const Derived&>(*this).sigma(ideal.range_m);
+    prediction.variance_m2 += s * s;
+  }
+};
+
+}  // namespace lidartwin
