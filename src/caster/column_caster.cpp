@@ -69,7 +69,8 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
   cosine = (c < 1.0f).select(c, Lanes::Ones());
 }
 
-void read_hits(const RTCRayHit16& packet, const Scene& scene, std::span<IdealReturn> out) {
+template <class Optics>
+void read_hits(const RTCRayHit16& packet, const Optics* optics, std::span<IdealReturn> out) {
   alignas(64) float cos_incidence[kLanes];
   incidence_lanes(packet, cos_incidence);
   for (size_t i = 0; i < out.size(); ++i) {
@@ -77,13 +78,13 @@ void read_hits(const RTCRayHit16& packet, const Scene& scene, std::span<IdealRet
     ideal = IdealReturn{};
     const unsigned geom_id = packet.hit.geomID[i];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
-    const Material& material = scene.material(geom_id);
+    const Optics& material = optics[geom_id];
     ideal.range_m = packet.ray.tfar[i];
     ideal.cos_incidence = cos_incidence[i];
     ideal.reflectivity = material.reflectivity;
     ideal.specular = material.specular;
     ideal.material_id = geom_id;
-    ideal.retroreflective = material.retroreflective ? 1 : 0;
+    ideal.retroreflective = material.retroreflective;
   }
 }
 
@@ -107,7 +108,12 @@ void mark_vertical_edges(std::span<IdealReturn> column) {
 }
 
 ColumnCaster::ColumnCaster(const Scene& scene, const BeamGeometry& geometry, float max_range_m)
-    : scene_(scene), geometry_(geometry), max_range_m_(max_range_m) {}
+    : scene_(scene), geometry_(geometry), max_range_m_(max_range_m) {
+  for (unsigned id = 0; id < scene.geometry_count(); ++id) {
+    const Material& m = scene.material(id);
+    optics_.push_back({m.reflectivity, m.specular, static_cast<uint8_t>(m.retroreflective ? 1 : 0)});
+  }
+}
 
 void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const {
   assert(static_cast<int>(out.size()) == geometry_.rows());
@@ -121,7 +127,7 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
     alignas(64) int valid[kLanes];
     fill_packet(rays[k], world, max_range_m_, packet, valid);
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    read_hits(packet, scene_, out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
+    read_hits(packet, optics_.data(), out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
   }
   mark_vertical_edges(out);
 }

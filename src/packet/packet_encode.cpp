@@ -43,9 +43,12 @@ void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& v
     const packet_detail::FieldCodec codec = impl.channels[k].codec;
     const size_t w = codec.offset / 8;
     const uint32_t* v = values[k];
+    // codec.place(value) with its shift direction resolved once, so the row loop has no branch.
+    const int down = std::max(0, -codec.shift), up = std::max(0, codec.shift);
+    const uint64_t mask = codec.mask;
     for (size_t row = 0; row < height; ++row) {
       assert(codec.fits(v[row]) && "channel value wider than its packet field");
-      words[row][w] |= codec.place(v[row]);
+      words[row][w] |= ((uint64_t{v[row]} >> down) << up) & mask;
     }
   }
   for (size_t row = 0; row < height; ++row) std::memcpy(pixels + row * kPixelBytes, words[row].data(), kPixelBytes);
@@ -78,6 +81,21 @@ void encode_column(const packet_detail::FormatCodecs& impl, const PacketHeader& 
   encode_pixels(impl, scan, index, m, out);
 }
 
+// Every byte the pixel rows do not cover (packet header, column headers and footers, packet
+// footer) to zero, so fields set by read-modify-write start clean and reserved bits stay 0;
+// encode_rows writes every pixel byte itself, so the ~25 KB of pixels are not cleared first.
+void zero_outside_pixels(const packet_detail::FormatCodecs& impl, std::span<uint8_t> out) {
+  const size_t pixels = static_cast<size_t>(impl.format.pixels_per_column) * impl.pixel_bytes;
+  size_t cleared = 0;  // bytes [0, cleared) are done
+  for (int i = 0; i < impl.format.columns_per_packet; ++i) {
+    const size_t first_pixel = impl.pixel_start(i, 0);
+    std::fill(out.begin() + static_cast<std::ptrdiff_t>(cleared), out.begin() + static_cast<std::ptrdiff_t>(first_pixel),
+              uint8_t{0});
+    cleared = first_pixel + pixels;
+  }
+  std::fill(out.begin() + static_cast<std::ptrdiff_t>(cleared), out.end(), uint8_t{0});
+}
+
 }  // namespace
 
 // Header values are truncated to their field widths, so a running frame counter wraps at 2^16
@@ -89,7 +107,7 @@ void PacketFormat::encode(const PacketHeader& header, const Scan& scan, int firs
   assert(out.size() == impl.packet_size);
   assert(scan.width == impl.format.columns_per_frame && scan.height == impl.format.pixels_per_column);
   assert(first_column >= 0 && first_column + cpp <= scan.width);
-  std::fill(out.begin(), out.end(), uint8_t{0});
+  zero_outside_pixels(impl, out);
   for (const auto& [field, codec] : impl.header) {
     codec.set(out, packet_detail::header_value(header, field) & codec.max_value());
   }

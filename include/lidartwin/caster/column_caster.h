@@ -1,7 +1,9 @@
 #pragma once
 // Casts the beams of one column at one pose with Embree (16-ray coherent packets).
+#include <cstdint>
 #include <limits>
 #include <span>
+#include <vector>
 
 #include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/ideal_return.h"
@@ -19,9 +21,18 @@ class ColumnCaster {
   void cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const;
 
  private:
+  // What a hit needs from its material, by geomID: copied from the scene once, so a hit reads a
+  // flat array instead of calling across modules for every pixel.
+  struct SurfaceOptics {
+    float reflectivity;
+    float specular;
+    uint8_t retroreflective;
+  };
+
   const Scene& scene_;
   const BeamGeometry& geometry_;
   float max_range_m_;
+  std::vector<SurfaceOptics> optics_;
 };
 
 // Sets IdealReturn::edge from the vertical neighbours in a column: 1 where a neighbour's range
