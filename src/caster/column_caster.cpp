@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <stdexcept>
 
 #include <embree3/rtcore.h>
 
@@ -13,6 +14,7 @@ namespace lidartwin {
 namespace {
 
 constexpr int kLanes = RayPacket16::kLanes;
+constexpr size_t kMaxRows = 128;  // beams of the largest Ouster sensor
 
 // world_from_sensor as plain floats: rotation row-major, then translation.
 struct WorldTransform {
@@ -93,18 +95,23 @@ void read_hits(const RTCRayHit16& packet, const Optics* optics, std::span<IdealR
 void mark_vertical_edges(std::span<IdealReturn> column) {
   const size_t n = column.size();
   if (n == 0) return;
+  // Profiles have 16 to 128 beams (profile_parse.cpp); a longer column is a caller's bug.
+  if (n > kMaxRows) throw std::length_error("mark_vertical_edges: a column has at most 128 rows");
   // step[r] = 1 when rows r and r + 1 differ by a depth step or in hit/miss; then each row is an
-  // edge when the step above or below it is.
-  uint8_t previous = 0;
+  // edge when the step above or below it is. Ranges are copied out of the returns first, so the
+  // step loop runs on plain arrays without branches and vectorizes.
+  alignas(64) float range[kMaxRows + 1];
+  alignas(64) uint8_t step[kMaxRows + 1];
+  for (size_t r = 0; r < n; ++r) range[r] = column[r].range_m;
   for (size_t r = 0; r + 1 < n; ++r) {
-    const float a = column[r].range_m, b = column[r + 1].range_m;
+    const float a = range[r], b = range[r + 1];
     const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
     const float threshold = std::max(0.3f, 0.05f * std::max(a, b));
-    const uint8_t step = (hit_a != hit_b) | (hit_a & hit_b & (std::abs(a - b) > threshold));
-    column[r].edge = previous | step;
-    previous = step;
+    step[r] = static_cast<uint8_t>((hit_a != hit_b) | (hit_a & hit_b & (std::abs(a - b) > threshold)));
   }
-  column[n - 1].edge = previous;
+  column[0].edge = n > 1 ? step[0] : 0;
+  for (size_t r = 1; r + 1 < n; ++r) column[r].edge = step[r - 1] | step[r];
+  if (n > 1) column[n - 1].edge = step[n - 2];
 }
 
 ColumnCaster::ColumnCaster(const Scene& scene, const BeamGeometry& geometry, float max_range_m)

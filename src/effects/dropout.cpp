@@ -50,19 +50,19 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
   }
 
   void simulate(std::span<const IdealReturn>, const ColumnContext& context,
-                std::span<Measurement> measured) const override {
+                MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
     for (uint32_t beam = 0; beam < measured.size(); ++beam) {
-      Measurement& m = measured[beam];
-      if (m.range_m == 0.0f) continue;
+      if (measured.range_m[beam] == 0.0f) continue;
+      const float signal = measured.signal_photons[beam], near_ir = measured.near_ir_photons[beam];
       const double u = streams(beam).uniform(0);
       // Strong returns (x >= 6, P_det >= 0.9975) with u below that bound are detected whatever
       // the exact P_det: skips log and exp for most pixels; outcomes change only by float rounding.
-      const bool surely = m.signal_photons >= sure_ratio_ * threshold(m.near_ir_photons) && u < sure_probability_;
-      if (surely || u < static_cast<double>(detection_probability(m.signal_photons, m.near_ir_photons))) continue;
-      m.range_m = 0.0f;
-      m.signal_photons = 0.0f;
-      m.reflectivity = 0.0f;
+      const bool surely = signal >= sure_ratio_ * threshold(near_ir) && u < sure_probability_;
+      if (surely || u < static_cast<double>(detection_probability(signal, near_ir))) continue;
+      measured.range_m[beam] = 0.0f;
+      measured.signal_photons[beam] = 0.0f;
+      measured.reflectivity[beam] = 0.0f;
     }
   }
 

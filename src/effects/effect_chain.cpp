@@ -86,13 +86,22 @@ nlohmann::json EffectChain::to_json() const {
 }
 
 void EffectChain::simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
-                           std::span<Measurement> out) const {
+                           MeasuredColumn& out) const {
   assert(ideal.size() == out.size());
-  for (size_t i = 0; i < ideal.size(); ++i) {
-    out[i] = Measurement{};
-    out[i].range_m = ideal[i].hit() ? ideal[i].range_m : 0.0f;
+  for (size_t i = 0; i < ideal.size(); ++i) out.range_m[i] = ideal[i].hit() ? ideal[i].range_m : 0.0f;
+  for (auto* quantity : {&out.signal_photons, &out.near_ir_photons, &out.reflectivity, &out.range2_m,
+                         &out.signal2_photons, &out.reflectivity2}) {
+    std::fill(quantity->begin(), quantity->end(), 0.0f);
   }
   for (const auto& effect : effects_) effect->simulate(ideal, context, out);
+}
+
+void EffectChain::simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
+                           std::span<Measurement> out) const {
+  assert(ideal.size() == out.size());
+  MeasuredColumn column(ideal.size());
+  simulate(ideal, context, column);
+  for (size_t i = 0; i < out.size(); ++i) out[i] = column[i];
 }
 
 Prediction EffectChain::predict(const IdealReturn& ideal, const ColumnContext& context) const {

@@ -15,14 +15,14 @@ class GaussianRangeNoise : public Base {
   using Base::Base;
 
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
-                std::span<Measurement> measured) const override {
+                MeasuredColumn& measured) const override {
     const auto& self = static_cast<const Derived&>(*this);
     const ColumnStreams streams = this->column_streams(context);
+    float* range = measured.range_m.data();
     for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
-      Measurement& m = measured[beam];
-      if (m.range_m == 0.0f) continue;  // no return (a negative noisy range still counts)
+      if (range[beam] == 0.0f) continue;  // no return (a negative noisy range still counts)
       const double noise = self.sigma(ideal[beam].range_m) * streams(beam).normal_ziggurat(0);
-      m.range_m = static_cast<float>(static_cast<double>(m.range_m) + noise);
+      range[beam] = static_cast<float>(static_cast<double>(range[beam]) + noise);
     }
   }
 

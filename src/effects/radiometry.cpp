@@ -82,16 +82,15 @@ class Radiometry final : public TabledEffect<Radiometry, RadiometryParameters> {
   }
 
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
-                std::span<Measurement> measured) const override {
+                MeasuredColumn& measured) const override {
     const float gain = column_gain(context);
     for (size_t beam = 0; beam < ideal.size(); ++beam) {
       const IdealReturn& in = ideal[beam];
-      Measurement& m = measured[beam];
-      m.near_ir_photons = near_ir(in);
-      if (!in.hit() || m.range_m == 0.0f) continue;  // no return: no signal, no reflectivity
+      measured.near_ir_photons[beam] = near_ir(in);
+      if (!in.hit() || measured.range_m[beam] == 0.0f) continue;  // no return: no signal, no reflectivity
       const float rho_app = apparent_reflectance(in);
-      m.signal_photons = gain * rho_app * range_factor_(in.range_m);
-      m.reflectivity = reflectivity_byte(rho_app);
+      measured.signal_photons[beam] = gain * rho_app * range_factor_(in.range_m);
+      measured.reflectivity[beam] = reflectivity_byte(rho_app);
     }
   }
 

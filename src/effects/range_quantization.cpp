@@ -1,6 +1,7 @@
 // E9: ranges are integers on the wire: 1 mm (RNG19, LEGACY) or 8 mm (RNG15 low-data-rate
 // profiles, a 15-bit value upshifted by 3). r_hat = step * round(r / step), applied after all
 // noise, adds step^2/12 of variance (0.08 mm^2 at 1 mm, 5.3 mm^2 at 8 mm).
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -10,9 +11,13 @@
 namespace lidartwin::effects_detail {
 namespace {
 
-// std::nearbyint is a library call on baseline x86-64 (no SSE4.1 roundsd); the conversion is not.
-// |x| stays far below 2^62 (ranges under 10 km, steps over 1 nm).
-double round_half_away(double x) { return static_cast<double>(static_cast<int64_t>(x >= 0.0 ? x + 0.5 : x - 0.5)); }
+// std::nearbyint is a library call on baseline x86-64 (no SSE4.1 roundss); a 32-bit conversion is
+// one instruction and vectorizes (cvttps2dq). The wire carries at most 2^20 mm; a range beyond
+// 2^31 steps saturates there instead of overflowing.
+float round_half_away(float x) {
+  const float shifted = std::clamp(x + std::copysign(0.5f, x), -2147483520.0f, 2147483520.0f);
+  return static_cast<float>(static_cast<int32_t>(shifted));
+}
 
 struct QuantizationParameters {
   double step_m = 0.0;  // 0 = the wire format's step, context.range_step_m
@@ -36,13 +41,15 @@ class RangeQuantization final : public TabledEffect<RangeQuantization, Quantizat
   }
 
   void simulate(std::span<const IdealReturn>, const ColumnContext& context,
-                std::span<Measurement> measured) const override {
+                MeasuredColumn& measured) const override {
     const double delta = step(context);
     if (delta <= 0.0) return;
-    const double inverse = 1.0 / delta;
-    for (Measurement& m : measured) {
-      if (m.range_m == 0.0f) continue;
-      m.range_m = static_cast<float>(delta * round_half_away(static_cast<double>(m.range_m) * inverse));
+    // The rounding in float, four lanes to a vector: r / step is exact to 0.03 steps even at
+    // 500 m, so only ranges that close to a half step can round the other way than in exact
+    // arithmetic. The product in double, so the result is the float nearest the lattice point.
+    const auto inverse = static_cast<float>(1.0 / delta);
+    for (float& range : measured.range_m) {  // no return (0) rounds to 0: no branch needed
+      range = static_cast<float>(delta * static_cast<double>(round_half_away(range * inverse)));
     }
   }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cstdint>
+#include <vector>
 
 namespace lidartwin::render_detail {
 namespace {
@@ -10,27 +11,29 @@ namespace {
 // range_mm = round(range_m * 1000) to the field's step; 0 means no return, and so does a range
 // the field cannot hold (a clamped range would be a false point at the field's end). Values stay
 // below 2^20, so the conversion goes through int32 (one instruction, vectorizable).
-template <float Measurement::*Member>
-void write_range(const ChannelLimits& c, std::span<const Measurement> measured, std::span<uint32_t> out) {
+template <std::vector<float> MeasuredColumn::*Member>
+void write_range(const ChannelLimits& c, const MeasuredColumn& measured, std::span<uint32_t> out) {
   const float to_steps = c.scale / c.step;
   const float lowest = 0.5f;
   const float highest = c.max / c.step + 0.5f;
   const auto step = static_cast<int32_t>(c.step);
+  const float* values = (measured.*Member).data();
   for (size_t r = 0; r < out.size(); ++r) {
-    const float steps = measured[r].*Member * to_steps;
+    const float steps = values[r] * to_steps;
     const bool representable = steps >= lowest && steps < highest;  // false for NaN
     out[r] = static_cast<uint32_t>(representable ? static_cast<int32_t>(steps + 0.5f) * step : 0);
   }
 }
 
 // Signal, near-IR and reflectivity saturate at their field's maximum; negative or NaN gives 0.
-template <float Measurement::*Member>
-void write_clamped(const ChannelLimits& c, std::span<const Measurement> measured, std::span<uint32_t> out) {
+template <std::vector<float> MeasuredColumn::*Member>
+void write_clamped(const ChannelLimits& c, const MeasuredColumn& measured, std::span<uint32_t> out) {
   const float inverse_step = 1.0f / c.step;
   const float highest = c.max / c.step;
   const auto step = static_cast<int32_t>(c.step);
+  const float* values = (measured.*Member).data();
   for (size_t r = 0; r < out.size(); ++r) {
-    float steps = measured[r].*Member * inverse_step;
+    float steps = values[r] * inverse_step;
     steps = steps > 0.0f ? steps : 0.0f;
     steps = steps < highest ? steps : highest;
     out[r] = static_cast<uint32_t>(static_cast<int32_t>(steps + 0.5f) * step);
@@ -42,15 +45,15 @@ struct Source {
   float scale;
   ChannelEncoder::Writer write;
 };
-// Which Measurement member feeds which channel. FLAGS and WINDOW are opaque to the SDK: left 0 (4.6).
+// Which MeasuredColumn array feeds which channel. FLAGS and WINDOW are opaque to the SDK: left 0 (4.6).
 constexpr Source kSources[] = {
-    {ChannelField::kRange, 1000.0f, &write_range<&Measurement::range_m>},
-    {ChannelField::kReflectivity, 1.0f, &write_clamped<&Measurement::reflectivity>},
-    {ChannelField::kSignal, 1.0f, &write_clamped<&Measurement::signal_photons>},
-    {ChannelField::kNearIr, 1.0f, &write_clamped<&Measurement::near_ir_photons>},
-    {ChannelField::kRange2, 1000.0f, &write_range<&Measurement::range2_m>},
-    {ChannelField::kReflectivity2, 1.0f, &write_clamped<&Measurement::reflectivity2>},
-    {ChannelField::kSignal2, 1.0f, &write_clamped<&Measurement::signal2_photons>},
+    {ChannelField::kRange, 1000.0f, &write_range<&MeasuredColumn::range_m>},
+    {ChannelField::kReflectivity, 1.0f, &write_clamped<&MeasuredColumn::reflectivity>},
+    {ChannelField::kSignal, 1.0f, &write_clamped<&MeasuredColumn::signal_photons>},
+    {ChannelField::kNearIr, 1.0f, &write_clamped<&MeasuredColumn::near_ir_photons>},
+    {ChannelField::kRange2, 1000.0f, &write_range<&MeasuredColumn::range2_m>},
+    {ChannelField::kReflectivity2, 1.0f, &write_clamped<&MeasuredColumn::reflectivity2>},
+    {ChannelField::kSignal2, 1.0f, &write_clamped<&MeasuredColumn::signal2_photons>},
 };
 
 }  // namespace
@@ -67,7 +70,7 @@ ChannelEncoder::ChannelEncoder(const PacketFormat& format) {
   }
 }
 
-void ChannelEncoder::write(std::span<const Measurement> measured, int column, Scan& scan) const {
+void ChannelEncoder::write(const MeasuredColumn& measured, int column, Scan& scan) const {
   assert(static_cast<int>(measured.size()) == scan.height);
   for (const Channel& channel : channels_) channel.write(channel.limits, measured, scan.column(channel.field, column));
 }

@@ -21,16 +21,16 @@ struct ChannelLimits {
 class ChannelEncoder {
  public:
   explicit ChannelEncoder(const PacketFormat& format);
-  void write(std::span<const Measurement> measured, int column, Scan& scan) const;
+  void write(const MeasuredColumn& measured, int column, Scan& scan) const;
   void clear(int column, Scan& scan) const;  // every channel of the column to 0
 
-  using Writer = void (*)(const ChannelLimits&, std::span<const Measurement>, std::span<uint32_t>);
+  using Writer = void (*)(const ChannelLimits&, const MeasuredColumn&, std::span<uint32_t>);
 
  private:
   struct Channel {
     ChannelField field;
     ChannelLimits limits;
-    Writer write;  // instantiated per Measurement member, so the loop reads a fixed offset
+    Writer write;  // instantiated per MeasuredColumn array, so the loop reads one float array
   };
   std::vector<Channel> channels_;     // the profile's channels that carry a Measurement value
   std::vector<ChannelField> fields_;  // every channel the profile carries

@@ -30,9 +30,10 @@ class Effect {
   virtual std::string_view name() const = 0;
 
   // Applies the effect to one column in place. `measured` holds what earlier effects produced
-  // (the chain starts it from the ideal returns). Random numbers come only from stream().
+  // (the chain starts it from the ideal returns); measured.size() == ideal.size(). Random numbers
+  // come only from stream() / column_streams().
   virtual void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
-                        std::span<Measurement> measured) const = 0;
+                        MeasuredColumn& measured) const = 0;
   // Folds this effect into the predicted distribution of one pixel's measured range.
   virtual void predict(const IdealReturn& ideal, const ColumnContext& context, Prediction& prediction) const = 0;
 

@@ -31,7 +31,9 @@ class EffectChain {
   nlohmann::json to_json() const;
 
   // Measurement from ideal returns (range = ideal range, 0 if no hit), then each effect in order.
-  // One virtual call per effect per column; effects loop over the beams.
+  // One virtual call per effect per column; effects loop over the beams. out.size() == ideal.size().
+  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context, MeasuredColumn& out) const;
+  // The same, one struct per pixel (tests and analysis; the renderer uses the arrays above).
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context, std::span<Measurement> out) const;
   // Bias 0, variance 0, p_detect = hit ? 1 : 0, then each effect folds itself in, in order.
   Prediction predict(const IdealReturn& ideal, const ColumnContext& context) const;

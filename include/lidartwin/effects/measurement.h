@@ -1,7 +1,9 @@
 #pragma once
 // The values an effect chain produces and predicts for one pixel.
+#include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 namespace lidartwin {
 
@@ -14,6 +16,30 @@ struct Measurement {
   float range2_m = 0.0f;      // second return (dual profiles), 0 = none
   float signal2_photons = 0.0f;
   float reflectivity2 = 0.0f;
+};
+
+// One column of Measurements as parallel arrays, one per quantity (structure of arrays): effects
+// loop over the beams of plain float arrays, which the compiler vectorizes, where an array of
+// 28-byte structs would be read with a stride (DESIGN.md "Speed": a few ns per pixel).
+struct MeasuredColumn {
+  MeasuredColumn() = default;
+  explicit MeasuredColumn(size_t beams)
+      : range_m(beams), signal_photons(beams), near_ir_photons(beams), reflectivity(beams), range2_m(beams),
+        signal2_photons(beams), reflectivity2(beams) {}
+
+  size_t size() const { return range_m.size(); }
+  Measurement operator[](size_t beam) const {
+    return {range_m[beam],  signal_photons[beam],  near_ir_photons[beam], reflectivity[beam],
+            range2_m[beam], signal2_photons[beam], reflectivity2[beam]};
+  }
+
+  std::vector<float> range_m;
+  std::vector<float> signal_photons;
+  std::vector<float> near_ir_photons;
+  std::vector<float> reflectivity;
+  std::vector<float> range2_m;
+  std::vector<float> signal2_photons;
+  std::vector<float> reflectivity2;
 };
 
 // The distribution of the measured range of one pixel given its ideal return, as the analysis

@@ -90,14 +90,17 @@ class RandomStream {
       : key_(pixel_key(effect_key(seed, pixel.frame, effect_id), pixel.column, pixel.beam)) {}
 
   // The key in two stages, the pixel last, so ColumnStreams mixes the rest once per column and a
-  // pixel's stream costs one mix.
+  // pixel's stream costs one multiply.
   static constexpr uint64_t effect_key(uint64_t seed, uint64_t frame, uint32_t effect_id) {
     using rng_detail::mix64;
     const uint64_t k = mix64(mix64(seed ^ 0x6C69646172747769ULL) ^ frame);  // "lidartwi"
     return mix64(k ^ (static_cast<uint64_t>(effect_id) * 0x9E3779B97F4A7C15ULL));
   }
+  // One multiply, not a full mix: bits() mixes key + draw fully anyway, and an odd multiplier is a
+  // bijection, so distinct pixels keep distinct keys. (A second mix64 here cost about a third of
+  // a Gaussian draw: tests/bench/effects_bench.cpp.)
   static constexpr uint64_t pixel_key(uint64_t effect_key, uint32_t column, uint32_t beam) {
-    return rng_detail::mix64(effect_key ^ ((static_cast<uint64_t>(column) << 32) | beam));
+    return effect_key ^ (((static_cast<uint64_t>(column) << 32) | beam) * 0xD1B54A32D192ED03ULL);
   }
 
   constexpr uint64_t bits(uint32_t draw) const {
@@ -135,7 +138,7 @@ class RandomStream {
 };
 
 // The streams of one (seed, frame, column, effect) for every beam of a column: the shared part of
-// the key is mixed once, so a pixel's stream costs one mix instead of four.
+// the key is mixed once, so a pixel's stream costs one multiply.
 // streams(beam) == RandomStream(seed, {frame, column, beam}, effect_id), bit for bit.
 class ColumnStreams {
  public:
