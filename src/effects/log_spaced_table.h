@@ -26,19 +26,25 @@ class LogSpacedTable {
     }
   }
 
-  // Ranges outside [kMinRange, kMaxRange] take the end values.
+  // Ranges outside [kMinRange, kMaxRange] take the end values. The clamp is done on the bit
+  // patterns (positive floats order like their bits; negatives and NaN clamp to an end): integer
+  // min/max vectorize where float ones would need -ffinite-math-only, so callers' loops over a
+  // column vectorize, the lookups becoming gathers.
   float operator()(float range_m) const {
-    const float r = std::clamp(range_m, kMinRange, kMaxRange);
-    const uint32_t offset = bits(r) - bits(kMinRange);
+    const int32_t clamped = std::min(std::max(std::bit_cast<int32_t>(range_m), kMinBits), kMaxBits);
+    const auto offset = static_cast<uint32_t>(clamped - kMinBits);
     const uint32_t k = offset >> kFractionBits;
     const float t = static_cast<float>(offset & kFractionMask) * (1.0f / static_cast<float>(kFractionMask + 1));
-    return values_[k] + t * (values_[k + 1] - values_[k]);
+    const float* v = values_.data();
+    return v[k] + t * (v[k + 1] - v[k]);
   }
 
  private:
   static constexpr uint32_t kFractionBits = 23 - 8;  // float mantissa bits below the top 8
   static constexpr uint32_t kFractionMask = (1u << kFractionBits) - 1;
   static constexpr uint32_t bits(float x) { return std::bit_cast<uint32_t>(x); }
+  static constexpr int32_t kMinBits = std::bit_cast<int32_t>(kMinRange);
+  static constexpr int32_t kMaxBits = std::bit_cast<int32_t>(kMaxRange);
 
   std::vector<float> values_;
 };

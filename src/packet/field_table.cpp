@@ -122,7 +122,7 @@ constexpr std::array<ProfileSpec, 6> kProfiles{{
 }};
 
 // Compile-time checks of every table: fields lie inside their struct, fit one 64-bit access, and
-// do not overlap; pixel fields stay inside one aligned 64-bit word.
+// do not overlap; pixel fields stay inside one aligned 32-bit word.
 template <typename Spec>
 constexpr bool fields_fit(std::span<const Spec> specs, int struct_bytes) {
   for (size_t i = 0; i < specs.size(); ++i) {
@@ -137,16 +137,18 @@ constexpr bool fields_fit(std::span<const Spec> specs, int struct_bytes) {
   return true;
 }
 
-constexpr bool within_64_bit_words(std::span<const ChannelSpec> specs) {
+// Pixel fields stay inside one aligned 32-bit word (and so one 64-bit word): the encoder builds
+// pixels as planes of 32-bit words (packet_encode.cpp). True of every Ouster profile.
+constexpr bool within_32_bit_words(std::span<const ChannelSpec> specs) {
   for (const ChannelSpec& s : specs) {
-    if (s.bits.bit_offset / 64 != (s.bits.bit_offset + s.bits.bit_width - 1) / 64) return false;
+    if (s.bits.bit_offset / 32 != (s.bits.bit_offset + s.bits.bit_width - 1) / 32) return false;
   }
   return true;
 }
 
 constexpr bool tables_valid() {
   for (const ProfileSpec& p : kProfiles) {
-    if (!fields_fit(p.channels, p.pixel_bytes) || !within_64_bit_words(p.channels)) return false;
+    if (!fields_fit(p.channels, p.pixel_bytes) || !within_32_bit_words(p.channels)) return false;
     if (p.pixel_bytes > kMaxPixelBytes) return false;
   }
   for (const PacketLayout* l : {&kLegacyLayout, &kStandardLayout}) {

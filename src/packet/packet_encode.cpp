@@ -29,29 +29,47 @@ uint64_t column_value(const packet_detail::FormatCodecs& impl, ColumnField field
 
 using ChannelValues = std::array<const uint32_t*, kChannelFieldCount>;
 
-// One column's pixels are assembled in 64-bit words on the stack, one field at a time over all
-// rows (a tight loop with the codec in registers, which the compiler vectorizes), then each pixel
-// is stored with a fixed-size move (kPixelBytes is a template argument). Read-modify-write of
-// overlapping 8-byte words in the packet would instead stall store forwarding on 4-byte pixels.
+// A channel's place in the pixel as a 32-bit word: every pixel field lies inside one aligned
+// 32-bit word (checked at compile time in field_table.cpp), so the 64-bit codec narrows to it.
+struct WordLane {
+  size_t word;    // 32-bit word of the pixel
+  int down = 0;   // value >> down << up, & mask = the field's bits in that word
+  int up = 0;
+  uint32_t mask = 0;
+};
+WordLane word_lane(const packet_detail::FieldCodec& codec) {
+  const bool high = (codec.mask & 0xFFFF'FFFFull) == 0;  // the field is in the upper half
+  const int shift = codec.shift - (high ? 32 : 0);
+  return {codec.offset / 4 + (high ? 1 : 0), std::max(0, -shift), std::max(0, shift),
+          static_cast<uint32_t>(high ? codec.mask >> 32 : codec.mask)};
+}
+
+// One column's pixels are assembled as planes, one per 32-bit word of the pixel: each channel is
+// one contiguous pass over its rows into its plane (vectorized, four or more rows per
+// instruction), then one pass interleaves the planes into pixels and a single copy writes them.
+// Read-modify-write of the packet's own bytes would instead stall store forwarding on
+// overlapping words, and 64-bit words would halve the lanes.
 template <size_t kPixelBytes>
 void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& values, uint8_t* pixels) {
-  constexpr size_t kWords = (kPixelBytes + 7) / 8;
+  static_assert(kPixelBytes % 4 == 0);
+  constexpr size_t kWords = kPixelBytes / 4;
   const auto height = static_cast<size_t>(impl.format.pixels_per_column);
-  std::array<std::array<uint64_t, kWords>, kMaxPixelsPerColumn> words;
-  std::fill_n(words.begin(), height, std::array<uint64_t, kWords>{});
+  alignas(64) uint32_t planes[kWords][kMaxPixelsPerColumn];
+  for (auto& plane : planes) std::fill_n(plane, height, 0u);
   for (size_t k = 0; k < impl.channels.size(); ++k) {
-    const packet_detail::FieldCodec codec = impl.channels[k].codec;
-    const size_t w = codec.offset / 8;
-    const uint32_t* v = values[k];
-    // codec.place(value) with its shift direction resolved once, so the row loop has no branch.
-    const int down = std::max(0, -codec.shift), up = std::max(0, codec.shift);
-    const uint64_t mask = codec.mask;
+    const WordLane lane = word_lane(impl.channels[k].codec);
+    const uint32_t* __restrict v = values[k];
+    uint32_t* __restrict plane = planes[lane.word];
     for (size_t row = 0; row < height; ++row) {
-      assert(codec.fits(v[row]) && "channel value wider than its packet field");
-      words[row][w] |= ((uint64_t{v[row]} >> down) << up) & mask;
+      assert(impl.channels[k].codec.fits(v[row]) && "channel value wider than its packet field");
+      plane[row] |= ((v[row] >> lane.down) << lane.up) & lane.mask;
     }
   }
-  for (size_t row = 0; row < height; ++row) std::memcpy(pixels + row * kPixelBytes, words[row].data(), kPixelBytes);
+  alignas(64) uint32_t interleaved[kMaxPixelsPerColumn * kWords];
+  for (size_t row = 0; row < height; ++row) {
+    for (size_t w = 0; w < kWords; ++w) interleaved[row * kWords + w] = planes[w][row];
+  }
+  std::memcpy(pixels, interleaved, height * kPixelBytes);
 }
 
 void encode_pixels(const packet_detail::FormatCodecs& impl, const Scan& scan, int index, int m,
