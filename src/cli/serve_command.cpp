@@ -91,7 +91,7 @@ Sensor make_sensor(const ServeFlags& flags, const SensorProfile& profile, const 
   options.state_file = flags.state_file;
   options.config_overrides = config_overrides(flags);
   try {
-    return Sensor(make_identity(profile, address), options);
+    return Sensor(make_identity(profile, address, flags.serial_number), options);
   } catch (const InputError& e) {
     throw InputError(std::string("--lidar-mode/--udp-profile/--state-file: ") + e.what());
   }
@@ -148,6 +148,10 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::Range(0, 65535))
       ->capture_default_str();
   sub->add_option("--seed", flags->seed, "noise seed")->capture_default_str();
+  sub->add_option("--serial-number", flags->serial_number,
+                  "prod_sn, 1 to 12 digits (default 122201 + digits from --address; give each sensor of a "
+                  "rig its own when they all bind 0.0.0.0)")
+      ->check(serial_number_validator());
   sub->add_option("--record", flags->record_dir, "also write every sent packet to DIR/capture.pcap + DIR/metadata.json");
   sub->add_option("--lidar-mode", flags->lidar_mode, "initial lidar_mode, e.g. 1024x10")->check(lidar_mode_validator());
   sub->add_option("--udp-profile", flags->udp_profile, "initial udp_profile_lidar")->check(udp_profile_validator());

@@ -55,7 +55,8 @@ std::array<uint8_t, 4> parse_address(const std::string& address) {
   return parsed.to_bytes();
 }
 
-SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address) {
+SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address,
+                             const std::string& serial_number) {
   SensorIdentity identity;
   identity.prod_line = profile.prod_line;
   identity.prod_pn = profile.prod_pn;
@@ -63,7 +64,7 @@ SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint
   identity.limits.lidar_modes = profile.lidar_modes;
   // 12 digits like a real serial; the last six from the address's last two bytes.
   const unsigned suffix = static_cast<unsigned>(address[2]) * 256u + address[3];
-  identity.prod_sn = "122201" + fmt::format("{:06}", suffix);
+  identity.prod_sn = serial_number.empty() ? "122201" + fmt::format("{:06}", suffix) : serial_number;
   return identity;
 }
 

@@ -20,6 +20,7 @@ struct ServeFlags {
   std::string trajectory;  // empty: scenes/plant_inspection.tum with the default scene
   std::string pose;        // "x y z qx qy qz qw": a sensor standing still
   std::string address = "127.0.0.1";
+  std::string serial_number;  // empty: 122201 + six digits from the address
   int http_port = 80;
   uint64_t seed = 0;
   std::string record_dir;
@@ -45,7 +46,9 @@ std::array<uint8_t, 4> parse_address(const std::string& address);
 
 // Who this virtual sensor is: the profile's product and beams; a serial number that differs per
 // address, so sensors side by side are told apart by clients (prod_sn in every packet, 4.3).
-SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address);
+// --serial-number, when given, replaces the derived one (containers all bind 0.0.0.0).
+SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address,
+                             const std::string& serial_number = "");
 // Config keys the flags set over the saved/default config.
 nlohmann::json config_overrides(const ServeFlags& flags);
 

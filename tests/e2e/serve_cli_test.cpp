@@ -1,5 +1,5 @@
 // `lidartwin serve` as a user meets it: bad flags are refused with a message naming the flag,
-// --record captures exactly what was sent, SIGTERM exits 0.
+// --serial-number is the sensor's identity, --record captures exactly what was sent, SIGTERM exits 0.
 #include <chrono>
 #include <filesystem>
 #include <ostream>
@@ -48,7 +48,26 @@ INSTANTIATE_TEST_SUITE_P(
                       BadFlag{"--address 300.1.2.3", "--address"}, BadFlag{"--http-port 70000", "--http-port"},
                       BadFlag{"--scene /no/such/scene.glb", "--scene"}, BadFlag{"--profile no-such-sensor", "no-such-sensor"},
                       BadFlag{"--trajectory /no/such.tum", "--trajectory"},  // excluded by the --pose of room_args
-                      BadFlag{"--threads -3", "--threads"}, BadFlag{"--no-such-flag", "--no-such-flag"}));
+                      BadFlag{"--threads -3", "--threads"}, BadFlag{"--no-such-flag", "--no-such-flag"},
+                      BadFlag{"--serial-number 12ab", "--serial-number"},
+                      BadFlag{"--serial-number 1234567890123", "--serial-number"}));
+
+// A rig's sensors in containers all bind 0.0.0.0, so the address cannot tell their serials apart:
+// --serial-number sets the one the metadata reports and every packet carries (4.3).
+TEST(ServeIdentity, SerialNumberFlagIsTheSensorsProdSn) {
+  UdpSocket lidar;
+  auto args = room_args();
+  args.insert(args.end(), {"--serial-number", "987654321012"});
+  Daemon daemon("127.0.0.1", 0, args);
+  SensorHttp http(daemon.address(), daemon.http_port());
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "512x10";
+  const Metadata metadata = parse(sdk016_init_client(http, request));
+  EXPECT_EQ(metadata.sensor_info.prod_sn, "987654321012");
+  Batcher batcher(metadata);
+  expect_complete_scans(receive_scans(lidar, batcher, 1, std::chrono::seconds(10)), metadata, 1);
+}
 
 TEST(ServeRecord, CapturesEverySentPacketWithMetadata) {
   const auto dir = scratch_dir() / "record";
