@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <numbers>
 #include <string>
 
@@ -76,9 +77,10 @@ class RecordGeometry : public ::testing::Test {
     const Eigen::Vector3d world_direction = pose.rotation * direction;
     if (range_mm == 0) {
       // No return: the physical ray (from the beam origin) must meet nothing inside the window.
-      const double hit = test::first_hit(scene.embree_scene(), world_origin, world_direction,
-                                         static_cast<float>(beams.beam_offset_m()), static_cast<float>(max_range_m));
-      if (hit > min_range_m + 0.01 && hit < max_range_m - 0.01) ++tally.dropped;
+      const auto hit = scene.first_hit(world_origin, world_direction, static_cast<float>(beams.beam_offset_m()),
+                                       static_cast<float>(max_range_m));
+      const double distance = hit ? static_cast<double>(hit->distance) : std::numeric_limits<double>::infinity();
+      if (distance > min_range_m + 0.01 && distance < max_range_m - 0.01) ++tally.dropped;
       return;
     }
     ++tally.points;

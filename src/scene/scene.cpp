@@ -94,6 +94,26 @@ const Material& Scene::material(unsigned geom_id) const {
   return impl_->materials[impl_->material_of_geometry.at(geom_id)];
 }
 
+std::optional<SceneHit> Scene::first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                         float near_m, float far_m) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh{};
+  rh.ray.org_x = static_cast<float>(origin.x());
+  rh.ray.org_y = static_cast<float>(origin.y());
+  rh.ray.org_z = static_cast<float>(origin.z());
+  rh.ray.dir_x = static_cast<float>(direction.x());
+  rh.ray.dir_y = static_cast<float>(direction.y());
+  rh.ray.dir_z = static_cast<float>(direction.z());
+  rh.ray.tnear = near_m;
+  rh.ray.tfar = far_m;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  return SceneHit{rh.ray.tfar, rh.hit.geomID, rh.hit.primID, Eigen::Vector3f(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z)};
+}
+
 size_t Scene::triangle_count() const { return impl_->triangles; }
 size_t Scene::geometry_count() const { return impl_->material_of_geometry.size(); }
 

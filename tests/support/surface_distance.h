@@ -73,25 +73,4 @@ inline double distance_to_surface(RTCScene scene, const Eigen::Vector3d& p, floa
   return nearest.best;
 }
 
-// First hit along a ray in [tnear, tfar], or +inf.
-inline double first_hit(RTCScene scene, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, float tnear,
-                        float tfar) {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  RTCRayHit rh{};
-  rh.ray.org_x = static_cast<float>(origin.x());
-  rh.ray.org_y = static_cast<float>(origin.y());
-  rh.ray.org_z = static_cast<float>(origin.z());
-  rh.ray.dir_x = static_cast<float>(direction.x());
-  rh.ray.dir_y = static_cast<float>(direction.y());
-  rh.ray.dir_z = static_cast<float>(direction.z());
-  rh.ray.tnear = tnear;
-  rh.ray.tfar = tfar;
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(scene, &context, &rh);
-  return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? std::numeric_limits<double>::infinity()
-                                                  : static_cast<double>(rh.ray.tfar);
-}
-
 }  // namespace lidartwin::test

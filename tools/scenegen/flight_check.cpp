@@ -4,8 +4,6 @@
 
 #include <algorithm>
 
-#include <embree3/rtcore.h>
-
 #include "lidartwin/scene/scene.h"
 
 namespace lidartwin::scenegen {
@@ -23,23 +21,6 @@ std::vector<Eigen::Vector3d> directions() {
   return out;
 }
 
-double first_hit(RTCScene scene, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, double horizon) {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  RTCRayHit rh{};
-  rh.ray.org_x = static_cast<float>(origin.x());
-  rh.ray.org_y = static_cast<float>(origin.y());
-  rh.ray.org_z = static_cast<float>(origin.z());
-  rh.ray.dir_x = static_cast<float>(direction.x());
-  rh.ray.dir_y = static_cast<float>(direction.y());
-  rh.ray.dir_z = static_cast<float>(direction.z());
-  rh.ray.tfar = static_cast<float>(horizon);
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(scene, &context, &rh);
-  return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? horizon : static_cast<double>(rh.ray.tfar);
-}
-
 }  // namespace
 
 Clearance min_clearance(const std::filesystem::path& scene_path, const std::vector<StampedPose>& poses,
@@ -48,7 +29,8 @@ Clearance min_clearance(const std::filesystem::path& scene_path, const std::vect
   Clearance clearance{horizon_m, poses.front().position};
   for (const StampedPose& pose : poses) {
     for (const Eigen::Vector3d& d : directions()) {
-      const double distance = first_hit(scene.embree_scene(), pose.position, d, horizon_m);
+      const auto hit = scene.first_hit(pose.position, d, 0.0f, static_cast<float>(horizon_m));
+      const double distance = hit ? static_cast<double>(hit->distance) : horizon_m;
       if (distance < clearance.distance_m) clearance = {distance, pose.position};
     }
   }

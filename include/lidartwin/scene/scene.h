@@ -3,7 +3,9 @@
 // Z up: world = (x, -z, y). That conversion lives here and nowhere else (DESIGN.md).
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +29,14 @@ struct Material {
   float specular = 0.0f;
 };
 
+// The first surface along one ray (Scene::first_hit).
+struct SceneHit {
+  float distance;          // along the ray, in units of |direction| (metres for a unit direction)
+  unsigned geom_id;        // Embree geometry: material(geom_id) is its material
+  unsigned prim_id;        // triangle within it
+  Eigen::Vector3f normal;  // Embree's geometric normal, world frame, not normalized
+};
+
 class Scene {
  public:
   // Throws InputError naming the file and the problem (unreadable, not glTF, no triangles…).
@@ -40,6 +50,11 @@ class Scene {
   RTCSceneTy* embree_scene() const;  // committed, for the caster's rtcIntersect calls
   // Material of an Embree hit (geomID); every geometry has one.
   const Material& material(unsigned geom_id) const;
+  // One ray with rtcIntersect1, for tools and tests (the emulator casts 16-ray packets in
+  // `caster`): the first surface with near_m <= distance <= far_m, or nothing.
+  std::optional<SceneHit> first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                    float near_m = 0.0f,
+                                    float far_m = std::numeric_limits<float>::infinity()) const;
   size_t triangle_count() const;
   size_t geometry_count() const;  // one Embree geometry per placed glTF primitive
   Eigen::AlignedBox3d bounds() const;  // world frame
