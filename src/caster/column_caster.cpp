@@ -71,8 +71,7 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
   cosine = (c < 1.0f).select(c, Lanes::Ones());
 }
 
-template <class Optics>
-void read_hits(const RTCRayHit16& packet, const Optics* optics, std::span<IdealReturn> out) {
+void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, std::span<IdealReturn> out) {
   alignas(64) float cos_incidence[kLanes];
   incidence_lanes(packet, cos_incidence);
   for (size_t i = 0; i < out.size(); ++i) {
@@ -80,7 +79,7 @@ void read_hits(const RTCRayHit16& packet, const Optics* optics, std::span<IdealR
     ideal = IdealReturn{};
     const unsigned geom_id = packet.hit.geomID[i];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
-    const Optics& material = optics[geom_id];
+    const ColumnCaster::SurfaceOptics& material = optics[geom_id];
     ideal.range_m = packet.ray.tfar[i];
     ideal.cos_incidence = cos_incidence[i];
     ideal.reflectivity = material.reflectivity;

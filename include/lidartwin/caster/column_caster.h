@@ -20,7 +20,6 @@ class ColumnCaster {
   // out.size() == geometry.rows(). Thread-safe (const): workers cast different columns at once.
   void cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const;
 
- private:
   // What a hit needs from its material, by geomID: copied from the scene once, so a hit reads a
   // flat array instead of calling across modules for every pixel.
   struct SurfaceOptics {
@@ -29,6 +28,7 @@ class ColumnCaster {
     uint8_t retroreflective;
   };
 
+ private:
   const Scene& scene_;
   const BeamGeometry& geometry_;
   float max_range_m_;
