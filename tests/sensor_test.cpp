@@ -237,7 +237,8 @@ TEST(Sensor, ReinitActivatesStagedWithNewInitIdAndDerivedFormat) {
   EXPECT_TRUE(next.streaming);
   EXPECT_EQ(next.timestamp_mode, "TIME_FROM_PTP_1588");
   EXPECT_EQ(next.signal_multiplier, 0.5f);
-  EXPECT_EQ(next.lidar_frame_azimuth_offset_mdeg, 9000);
+  // lidar_frame_azimuth_offset reaches the stream as the served beams, rotated (make_metadata).
+  EXPECT_NE(next.metadata.beams.lidar_to_sensor, first->metadata.beams.lidar_to_sensor);
   EXPECT_EQ(sensor.sensor_info().at("initialization_id"), next.init_id);
   EXPECT_EQ(sensor.metadata().at("lidar_data_format").at("columns_per_frame"), 2048);
   EXPECT_EQ(sensor.active_config(), sensor.staged_config());

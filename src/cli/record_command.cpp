@@ -14,6 +14,8 @@
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
 #include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/random/counter_rng.h"
 
 namespace lidartwin::cli {
@@ -46,11 +48,11 @@ EffectChain ideal_chain(const SensorProfile& profile) {
   return EffectChain::from_json(chain, "--ideal chain for profile " + profile.name);
 }
 
-Trajectory load_trajectory(const RecordFlags& flags) {
+std::unique_ptr<PoseSource> load_poses(const RecordFlags& flags) {
   if (flags.trajectory.empty() == flags.pose.empty()) throw InputError("record: give one of --trajectory or --pose");
   if (!flags.pose.empty()) {
     try {
-      return Trajectory::constant(parse_pose(flags.pose));
+      return std::make_unique<StaticPose>(parse_pose(flags.pose));
     } catch (const InputError& e) {
       throw InputError(std::string("--pose: ") + e.what());
     }
@@ -60,7 +62,7 @@ Trajectory load_trajectory(const RecordFlags& flags) {
     throw InputError("--trajectory " + flags.trajectory + ": starts at a negative time (" +
                      std::to_string(trajectory.start_s()) + " s); times become sensor timestamps in ns");
   }
-  return trajectory;
+  return std::make_unique<TrajectoryPoses>(std::move(trajectory));
 }
 
 std::string join(const std::vector<std::string>& items) {
@@ -122,15 +124,13 @@ class ProgressBar {
 int run_record(const RecordFlags& flags) {
   const SensorProfile profile = load_profile(flags.profile);
   const Metadata metadata = make_record_metadata(flags, profile);
-  const Trajectory trajectory = load_trajectory(flags);
+  const std::unique_ptr<PoseSource> poses = load_poses(flags);
   const Scene scene = Scene::load(flags.scene);
   EffectChain chain =
       flags.ideal ? ideal_chain(profile) : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
-  RenderConfig render;
-  render.seed = flags.seed;
-  render.threads = flags.threads;
   const ProgressBar bar(flags.frames, metadata.format.fps);
-  record({scene, profile, trajectory, std::move(chain), metadata, render, flags.frames, flags.out},
+  record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
+          flags.out},
          [&bar](int done) { bar.update(done); });
   return 0;
 }

@@ -1,12 +1,11 @@
 // `lidartwin serve`: the daemon. A Sensor (state machine) behind the HTTP API, and a Streamer that
 // follows the sensor's active config; Ctrl-C or SIGTERM stops both and exits 0.
 #include <algorithm>
-#include <condition_variable>
+#include <chrono>
 #include <csignal>
-#include <mutex>
-#include <stop_token>
-#include <thread>
 #include <iostream>
+#include <memory>
+#include <thread>
 
 #include <pthread.h>
 #include <sched.h>
@@ -21,10 +20,10 @@
 #include "cli/serve_inputs.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/error.h"
-#include "lidartwin/http_api/http_server.h"
-#include "lidartwin/packet/data_format.h"
+#include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/rig/virtual_sensor.h"
 #include "lidartwin/scene/scene.h"
-#include "lidartwin/streamer/streamer.h"
 
 namespace lidartwin::cli {
 namespace {
@@ -44,35 +43,19 @@ int report_bind_error(const BindError& error) {
   return 2;
 }
 
-// Runs until SIGINT/SIGTERM: the signal stops the streamer, which leaves the io_context without
-// work, so run() returns; then the HTTP server is stopped and the subscription dropped.
-int run_daemon(asio::io_context& io, Sensor& sensor, HttpServer& http, Streamer& streamer) {
-  // Stats go to the sensor from a thread of their own: the send clock must never wait for the
-  // sensor's lock, which HTTP threads hold.
-  std::jthread stats_pump([&sensor, &streamer](std::stop_token stop) {
-    const sched_param normal{};
-    pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);  // not the clock's SCHED_FIFO
-    std::mutex mutex;
-    std::condition_variable_any tick;
-    std::unique_lock lock(mutex);
-    while (!tick.wait_for(lock, stop, std::chrono::seconds(1), [] { return false; })) {
-      if (stop.stop_requested()) break;
-      sensor.set_stream_stats(streamer.stats());
-    }
-  });
-  const int subscription = sensor.subscribe([&streamer](const Sensor::StreamConfigPtr& config) { streamer.apply(config); });
+// Runs until SIGINT/SIGTERM: the signal stops the sensor's streamer, which leaves the io_context
+// without work, so run() returns; then the sensor's HTTP server and stats stop.
+int run_daemon(asio::io_context& io, VirtualSensor& sensor) {
   asio::signal_set signals(io, SIGINT, SIGTERM);
-  signals.async_wait([&streamer](const asio::error_code& error, int signal_number) {
+  signals.async_wait([&sensor](const asio::error_code& error, int signal_number) {
     if (error) return;
     spdlog::info("serve: {} received, stopping", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
-    streamer.stop();
+    sensor.stop_streaming();
   });
   // The send clock's wake-ups should not be rounded up by the default 50 us timer slack.
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   io.run();
-  stats_pump.request_stop();
-  sensor.unsubscribe(subscription);
-  http.stop();
+  sensor.stop();
   spdlog::info("serve: stopped");
   return 0;
 }
@@ -86,53 +69,72 @@ bool raise_send_clock_priority() {
   return pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
 }
 
-Sensor make_sensor(const ServeFlags& flags, const SensorProfile& profile, const std::array<uint8_t, 4>& address) {
-  SensorOptions options;
-  options.state_file = flags.state_file;
-  options.config_overrides = config_overrides(flags);
-  try {
-    return Sensor(make_identity(profile, address, flags.serial_number), options);
-  } catch (const InputError& e) {
-    throw InputError(std::string("--lidar-mode/--udp-profile/--state-file: ") + e.what());
-  }
+// Whether raise_send_clock_priority() will succeed, asked of a throwaway thread so that the
+// casting threads can be niced from the start when it will not.
+bool send_clock_can_be_realtime() {
+  bool can = false;
+  std::thread([&can] { can = raise_send_clock_priority(); }).join();
+  return can;
+}
+
+VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorProfile& profile,
+                                const std::array<uint8_t, 4>& address, int render_nice) {
+  VirtualSensorSetup setup;
+  setup.identity = make_identity(profile, address, flags.serial_number);
+  setup.sensor.state_file = flags.state_file;
+  setup.sensor.config_overrides = config_overrides(flags);
+  setup.http.address = flags.address;
+  setup.http.port = flags.http_port;
+  setup.streamer.source_address = address;
+  setup.streamer.record_dir = flags.record_dir;
+  setup.streamer.spin_us = flags.spin_us;
+  setup.streamer.render_nice = render_nice;
+  setup.max_range_m = profile.max_range_m;
+  setup.chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  setup.seed = flags.seed;
+  return setup;
+}
+
+int64_t steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 int serve(const ServeFlags& flags) {
   setup_logging(flags.log_level);
   const auto address = parse_address(flags.address);
   const SensorProfile profile = load_profile(flags.profile);
-  EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  const bool realtime = send_clock_can_be_realtime();
+  VirtualSensorSetup setup = sensor_setup(flags, profile, address, realtime ? 0 : 5);
   const auto scene_file = scene_path(flags);
-  Trajectory trajectory = load_trajectory(flags);
+  const Trajectory trajectory = load_trajectory(flags);
+  const TrajectoryPoses poses(trajectory);
   const Scene scene = Scene::load(scene_file);
   spdlog::info("serve: {} ({}) in {} ({} triangles), trajectory of {:.1f} s", profile.prod_line, profile.name,
                scene_file.string(), scene.triangle_count(), trajectory.duration_s());
-  Sensor sensor = make_sensor(flags, profile, address);
 
-  HttpServerOptions http_options;
-  http_options.address = flags.address;
-  http_options.port = flags.http_port;
-  HttpServer http(sensor, http_options);
+  asio::io_context io;
+  WorkerPool pool(flags.threads, setup.streamer.render_nice);
+  const RigContext rig{io, scene, poses, pool, steady_now_ns()};
+  std::unique_ptr<VirtualSensor> sensor;
   try {
-    http.start();
+    sensor = std::make_unique<VirtualSensor>(rig, std::move(setup));
+  } catch (const InputError& e) {
+    // The streamer names --record itself; the sensor's config errors come from these flags.
+    const std::string message = e.what();
+    if (message.starts_with("--record")) throw;
+    throw InputError("--lidar-mode/--udp-profile/--state-file: " + message);
+  }
+  try {
+    sensor->start();
   } catch (const BindError& e) {
     return report_bind_error(e);
   }
-  spdlog::info("serve: sensor {} sn {} answering on http://{}:{}/api/v1/", sensor.identity().prod_line,
-               sensor.identity().prod_sn, flags.address, http.port());
-
-  asio::io_context io;
-  StreamerOptions options;
-  const bool realtime = raise_send_clock_priority();
-  options.render_nice = realtime ? 0 : 5;
+  spdlog::info("serve: sensor {} sn {} answering on http://{}:{}/api/v1/", sensor->sensor().identity().prod_line,
+               sensor->sensor().identity().prod_sn, flags.address, sensor->http().port());
+  raise_send_clock_priority();
   spdlog::info("serve: send clock runs {}", realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
-  options.source_address = address;
-  options.render.seed = flags.seed;
-  options.render.threads = flags.threads;
-  options.record_dir = flags.record_dir;
-  options.spin_us = flags.spin_us;
-  Streamer streamer(io, scene, profile, std::move(chain), std::move(trajectory), options);
-  return run_daemon(io, sensor, http, streamer);
+  return run_daemon(io, *sensor);
 }
 
 void setup_serve(CLI::App& app, std::function<int()>& run) {

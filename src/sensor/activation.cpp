@@ -34,7 +34,6 @@ Activation activate(const SensorIdentity& identity, const nlohmann::json& config
   stream->streaming = config.value("operating_mode", "NORMAL") == "NORMAL";
   stream->timestamp_mode = config.value("timestamp_mode", "TIME_FROM_INTERNAL_OSC");
   stream->signal_multiplier = config.value("signal_multiplier", 1.0f);
-  stream->lidar_frame_azimuth_offset_mdeg = config.value("lidar_frame_azimuth_offset", 0);
   stream->init_id = init_id;
   stream->prod_sn = parse_prod_sn(identity.prod_sn);
 

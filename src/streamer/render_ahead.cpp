@@ -3,61 +3,34 @@
 #include <algorithm>
 #include <chrono>
 
-#include <pthread.h>
-#include <sched.h>
-#include <sys/resource.h>
-#include <unistd.h>
-
 #include <spdlog/spdlog.h>
 
-#include "lidartwin/streamer/packet_schedule.h"
+#include "lidartwin/frame/worker_pool.h"
+#include "streamer/session_timing.h"
 
 namespace lidartwin::streamer_detail {
 
 namespace {
-// Columns cast per render call: small enough that the first packets of a frame are ready long
-// before the frame is done, large enough to keep the renderer's pool busy.
+// Columns rendered per call: small enough that the first packets of a frame are ready long before
+// the frame is done, large enough to keep the worker pool busy.
 constexpr int kColumnsPerChunk = 128;
 constexpr std::chrono::milliseconds kRecheck{2};
 
-// Threads inherit the scheduling policy of their creator: the io thread may run the send clock as
-// SCHED_FIFO, which the worker and the renderer's pool (created from the worker) must not.
-void lower_priority(int nice) {
-  const sched_param normal{};
-  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
-  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);  // per thread on Linux
-}
-
-// Runs of consecutive packets (a wrapping window has two), cut into chunks.
-std::vector<std::pair<size_t, size_t>> plan_chunks(const std::vector<int>& firsts, int columns_per_packet) {
-  const size_t max_packets = static_cast<size_t>(std::max(1, kColumnsPerChunk / columns_per_packet));
+std::vector<std::pair<size_t, size_t>> plan_chunks(size_t packets, int columns_per_packet) {
+  const size_t per_chunk = static_cast<size_t>(std::max(1, kColumnsPerChunk / columns_per_packet));
   std::vector<std::pair<size_t, size_t>> chunks;
-  size_t begin = 0;
-  for (size_t i = 1; i <= firsts.size(); ++i) {
-    const bool run_ends = i == firsts.size() || firsts[i] != firsts[i - 1] + columns_per_packet;
-    if (run_ends || i - begin == max_packets) {
-      chunks.emplace_back(begin, i);
-      begin = i;
-    }
-  }
+  for (size_t begin = 0; begin < packets; begin += per_chunk) chunks.emplace_back(begin, std::min(packets, begin + per_chunk));
   return chunks;
 }
 }  // namespace
 
-RenderAhead::RenderAhead(RendererFactory make_renderer, PacketFormat format, const Trajectory& trajectory,
-                         SessionTiming timing, PacketHeader header, int frames_ahead, int worker_nice)
-    : make_renderer_(std::move(make_renderer)),
-      format_(std::move(format)),
-      trajectory_(trajectory),
-      timing_(timing),
-      header_(header),
+RenderAhead::RenderAhead(const ForwardModel& model, int frames_ahead, int worker_nice)
+    : model_(model),
       worker_nice_(worker_nice),
-      firsts_(packets_to_send(format_.format())),
-      chunks_(plan_chunks(firsts_, format_.format().columns_per_packet)) {
+      chunks_(plan_chunks(model.packet_columns().size(), model.format().columns_per_packet)) {
   for (int i = 0; i <= std::max(1, frames_ahead); ++i) {
     auto slot = std::make_unique<Slot>();
-    slot->scan = Scan(format_.format());
-    slot->bytes.resize(firsts_.size() * format_.lidar_packet_size());
+    slot->encoded = model_.make_frame_buffer();
     slots_.push_back(std::move(slot));
   }
   worker_ = std::thread([this] { run(); });
@@ -77,8 +50,7 @@ std::span<const uint8_t> RenderAhead::packet(uint64_t frame, size_t index) const
   const Slot& slot = *slots_[frame % slots_.size()];
   if (slot.frame.load(std::memory_order_acquire) != frame) return {};
   if (slot.ready.load(std::memory_order_acquire) <= index) return {};
-  const size_t size = format_.lidar_packet_size();
-  return {slot.bytes.data() + index * size, size};
+  return model_.packet(slot.encoded, index);
 }
 
 // Called by the send clock, which must never wait for the worker: no lock is taken (a lock held by
@@ -103,8 +75,7 @@ bool RenderAhead::wait_for_room(uint64_t& frame) {
 void RenderAhead::run() {
   uint64_t frame = 0;
   try {
-    lower_priority(worker_nice_);
-    renderer_ = make_renderer_();
+    run_at_normal_priority(worker_nice_);
     while (wait_for_room(frame)) {
       const int64_t began = steady_now_ns();
       render_frame(frame, *slots_[frame % slots_.size()]);
@@ -121,33 +92,10 @@ void RenderAhead::run() {
 void RenderAhead::render_frame(uint64_t frame, Slot& slot) {
   slot.ready.store(0, std::memory_order_relaxed);
   slot.frame.store(frame, std::memory_order_release);
-  PacketHeader header = header_;
-  header.frame_id = frame_id_of(frame, format_.format());
-  const double frame_start_s = timing_.frame_trajectory_time_s(frame);
-  const int cpp = format_.format().columns_per_packet;
-  const size_t size = format_.lidar_packet_size();
   for (const auto& [begin, end] : chunks_) {
     if (abandoned(frame)) return;
-    const int first = firsts_[begin];
-    const int last = firsts_[end - 1] + cpp;
-    renderer_->render(frame, frame_start_s, trajectory_, first, last, slot.scan);
-    stamp_columns(frame, first, last, slot.scan);
-    for (size_t i = begin; i < end; ++i) {
-      format_.encode(header, slot.scan, firsts_[i], std::span<uint8_t>(slot.bytes.data() + i * size, size));
-    }
+    model_.render(frame, begin, end, slot.encoded);
     slot.ready.store(end, std::memory_order_release);
-  }
-}
-
-// Column timestamps in the session's sensor clock (6.3) and status from the window (6.4): what
-// the packets say about time and validity is the streamer's business, not the renderer's.
-void RenderAhead::stamp_columns(uint64_t frame, int first, int last, Scan& scan) const {
-  const auto& format = format_.format();
-  const uint32_t valid = format.udp_profile_lidar == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;
-  for (int m = first; m < last; ++m) {
-    const auto column = static_cast<size_t>(m);
-    scan.timestamp_ns[column] = timing_.column_timestamp_ns(frame, m);
-    scan.status[column] = column_in_window(format.column_window, m) ? valid : 0u;
   }
 }
 

@@ -1,11 +1,11 @@
 #pragma once
-// Where one streaming session's frames sit on the three clocks that matter: the host's steady clock
-// (when to send), the sensor's timestamp clock (what packets carry, protocol doc 6.3) and the
-// trajectory's time (where the sensor is).
+// Where one streaming session sits on the host's steady clock: frame 0 starts at start_steady_ns,
+// and everything after follows the sensor's clock (frame/sensor_clock.h), whose origin carries
+// the timestamp offset of the config's timestamp_mode and the pose source's time at that instant.
 #include <chrono>
 #include <cstdint>
 
-#include "lidartwin/streamer/packet_schedule.h"
+#include "lidartwin/frame/sensor_clock.h"
 
 namespace lidartwin::streamer_detail {
 
@@ -15,24 +15,11 @@ inline int64_t steady_now_ns() {
 }
 
 struct SessionTiming {
-  ColumnClock clock;
-  int64_t start_steady_ns = 0;          // frame 0 starts here
-  int64_t timestamp_offset_ns = 0;      // column timestamp = steady ns + this
-  double trajectory_start_s = 0.0;      // trajectory time at frame 0's start
+  int64_t start_steady_ns = 0;  // frame 0's column 0 is observed here
+  SensorClock clock;
 
-  int64_t column_steady_ns(uint64_t frame, int measurement_id) const {
-    return start_steady_ns + static_cast<int64_t>(clock.column_time_ns(frame, measurement_id));
-  }
-  uint64_t column_timestamp_ns(uint64_t frame, int measurement_id) const {
-    return static_cast<uint64_t>(column_steady_ns(frame, measurement_id) + timestamp_offset_ns);
-  }
-  double frame_trajectory_time_s(uint64_t frame) const {
-    return trajectory_start_s + static_cast<double>(clock.frame_start_ns(frame)) * 1e-9;
-  }
-  // Offset of an instant on the steady clock into the trajectory's time.
-  double trajectory_time_s(int64_t steady_ns) const {
-    return trajectory_start_s + static_cast<double>(steady_ns - start_steady_ns) * 1e-9;
-  }
+  // The steady-clock instant of a time given relative to the sensor clock's origin.
+  int64_t steady_ns(uint64_t since_origin_ns) const { return start_steady_ns + static_cast<int64_t>(since_origin_ns); }
 };
 
 }  // namespace lidartwin::streamer_detail

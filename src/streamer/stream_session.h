@@ -9,9 +9,7 @@
 
 #include <asio.hpp>
 
-#include "lidartwin/packet/lidar_packet.h"
-#include "lidartwin/packet/scan.h"
-#include "lidartwin/pose/pose.h"
+#include "lidartwin/frame/forward_model.h"
 #include "lidartwin/sensor/stream_config.h"
 #include "streamer/render_ahead.h"
 #include "streamer/session_timing.h"
@@ -34,11 +32,18 @@ namespace lidartwin::streamer_detail {
 //   receive buffer (item 12).
 class StreamSession : public std::enable_shared_from_this<StreamSession> {
  public:
-  // render is null when the lidar stream is off (udp_port_lidar 0). trajectory, sender and
-  // counters must outlive the session (the Streamer owns them).
+  // The session renders ahead with `model` when the lidar stream is on (udp_port_lidar != 0) and
+  // sends IMU packets when send_imu. sender and counters must outlive the session (the Streamer
+  // owns them).
+  struct Options {
+    bool send_imu = false;
+    int frames_ahead = 2;
+    int render_nice = 0;
+    int64_t spin_ns = 0;  // wake this much before a lidar deadline, then spin to it
+  };
   StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
-                std::shared_ptr<const StreamConfig> config, const Trajectory& trajectory, SessionTiming timing,
-                std::unique_ptr<RenderAhead> render, bool send_imu, int64_t spin_ns);
+                std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model,
+                SessionTiming timing, Options options);
   void start();
   void stop();  // cancels both clocks and joins the render worker
   uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }
@@ -48,9 +53,9 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   void arm_lidar();
   void on_lidar_deadline();
   void send_lidar_packet(int64_t now_ns);
-  std::span<const uint8_t> blank_packet();
   void advance_lidar();
   void skip_overdue_lidar(int64_t now_ns);
+  int64_t imu_deadline_ns() const;
   void arm_imu();
   void on_imu_deadline();
 
@@ -59,15 +64,12 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   UdpSender& sender_;
   StreamCounters& counters_;
   std::shared_ptr<const StreamConfig> config_;
-  const Trajectory& trajectory_;
+  std::unique_ptr<ForwardModel> model_;
   SessionTiming timing_;
-  std::unique_ptr<RenderAhead> render_;
-  bool send_imu_ = false;
-  int64_t spin_ns_ = 0;  // wake this much before a lidar deadline, then spin to it
-  std::vector<int> packet_columns_;
-  std::unique_ptr<PacketFormat> packet_format_;  // for blank packets; null without lidar
-  Scan blank_scan_;                             // all columns invalid; timestamps set per packet
-  std::vector<uint8_t> blank_bytes_;
+  Options options_;
+  std::unique_ptr<RenderAhead> render_;  // null without a lidar stream; goes before model_
+  size_t packets_per_frame_ = 0;         // 0 without a lidar stream
+  EncodedFrame blank_;                   // only for blank packets: its pixels stay zero
   uint64_t frame_ = 0;
   size_t packet_index_ = 0;
   uint64_t imu_index_ = 0;

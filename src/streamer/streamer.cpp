@@ -7,15 +7,12 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/metadata/metadata.h"
-#include "lidartwin/streamer/packet_schedule.h"
-#include "streamer/render_ahead.h"
 #include "streamer/stream_counters.h"
 #include "streamer/stream_session.h"
 #include "streamer/udp_sender.h"
 
 namespace lidartwin {
 
-using streamer_detail::RenderAhead;
 using streamer_detail::SessionTiming;
 using streamer_detail::steady_now_ns;
 
@@ -50,15 +47,10 @@ std::string describe(const asio::ip::address_v4& address, uint16_t port) {
 }
 }  // namespace
 
-Streamer::Streamer(asio::io_context& io, const Scene& scene, SensorProfile profile, EffectChain chain,
-                   Trajectory trajectory, StreamerOptions options)
+Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOptions options)
     : io_(io),
-      scene_(scene),
-      profile_(std::move(profile)),
-      chain_(std::move(chain)),
-      trajectory_(std::move(trajectory)),
+      make_model_(std::move(make_model)),
       options_(std::move(options)),
-      daemon_start_ns_(steady_now_ns()),
       sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
       counters_(std::make_unique<streamer_detail::StreamCounters>()),
       stats_timer_(io) {
@@ -94,56 +86,32 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
   }
 }
 
-SessionTiming Streamer::session_timing(const StreamConfig& config) const {
-  const LidarDataFormat& format = config.metadata.format;
-  SessionTiming timing;
-  timing.clock = {format.columns_per_frame, format.fps};
-  timing.start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
-  timing.timestamp_offset_ns = timestamp_offset_ns(config);
-  timing.trajectory_start_s =
-      trajectory_.start_s() + static_cast<double>(timing.start_steady_ns - daemon_start_ns_) * 1e-9;
-  return timing;
-}
-
-std::unique_ptr<RenderAhead> Streamer::start_rendering(std::shared_ptr<const StreamConfig> config,
-                                                       const SessionTiming& timing) {
-  const LidarDataFormat& format = config->metadata.format;
-  PacketFormat packet_format(format);  // throws InputError naming a format it cannot encode
-  RenderConfig render_config = options_.render;
-  render_config.signal_gain = config->signal_multiplier;
-  PacketHeader header;
-  header.init_id = config->init_id;
-  header.prod_sn = config->prod_sn;
-  spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
-               to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
-               packets_to_send(format).size(), packet_format.lidar_packet_size(),
-               asio::ip::address_v4(options_.source_address).to_string(), sender_->source_port(),
-               describe(asio::ip::address_v4(config->udp_dest), config->udp_port_lidar), config->init_id);
-  // The renderer may keep references to profile and format: both outlive it (a Streamer member,
-  // and the config the factory holds).
-  auto make_renderer = [this, config, render_config] {
-    // Cast with the intrinsics the client is served (lidar_frame_azimuth_offset rotates them).
-    SensorProfile served = profile_;
-    served.beams = config->metadata.beams;
-    return std::make_unique<FrameRenderer>(scene_, served, chain_, config->metadata.format, render_config);
-  };
-  return std::make_unique<RenderAhead>(make_renderer, packet_format, trajectory_, timing, header,
-                                       options_.frames_ahead, options_.render_nice);
-}
-
 void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
-  const UdpProfileImu imu_profile = config->metadata.format.udp_profile_imu;
+  const LidarDataFormat& format = config->metadata.format;
+  const UdpProfileImu imu_profile = format.udp_profile_imu;
   const bool imu = config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kLegacy;
   if (config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kAccel32Gyro32Nmea) {
     spdlog::warn("streamer: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent");
   }
-  const SessionTiming timing = session_timing(*config);
-  std::unique_ptr<RenderAhead> render = config->udp_port_lidar != 0 ? start_rendering(config, timing) : nullptr;
+  SessionTiming timing;
+  timing.start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
+  const auto origin_ns = static_cast<uint64_t>(timing.start_steady_ns + timestamp_offset_ns(*config));
+  std::unique_ptr<ForwardModel> model = make_model_(*config, timing.start_steady_ns, origin_ns);
+  timing.clock = model->clock();
+  spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
+               to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
+               model->packet_columns().size(), model->packet_size(),
+               asio::ip::address_v4(options_.source_address).to_string(), sender_->source_port(),
+               describe(asio::ip::address_v4(config->udp_dest), config->udp_port_lidar), config->init_id);
   spdlog::info("streamer: IMU to {}", describe(asio::ip::address_v4(config->udp_dest), imu ? config->udp_port_imu : 0));
   write_record_metadata(options_.record_dir, *config);
-  session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config), trajectory_,
-                                                              timing, std::move(render), imu,
-                                                              int64_t{options_.spin_us} * 1000);
+  streamer_detail::StreamSession::Options session_options;
+  session_options.send_imu = imu;
+  session_options.frames_ahead = options_.frames_ahead;
+  session_options.render_nice = options_.render_nice;
+  session_options.spin_ns = int64_t{options_.spin_us} * 1000;
+  session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config),
+                                                              std::move(model), timing, session_options);
   session_->start();
 }
 

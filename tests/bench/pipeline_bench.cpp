@@ -5,7 +5,7 @@
 //       the packet copy and the intersect are timed);
 //   (b) the same rays one per rtcIntersect1 call, all cores (for context);
 //   (c) the full pipeline: pose per column, cast, effect chain, protocol units, packet encode with
-//       CRC-64 into packet buffers (FrameRenderer + PacketFormat, as `record` runs them).
+//       CRC-64 into packet buffers (the ForwardModel, as `record` runs it).
 // Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=5] [only=all|pipeline] (best of
 // the repeats; "pipeline" skips (a) and (b), for profiling).
 #include <algorithm>
@@ -29,7 +29,8 @@
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/pose/pose.h"
 #include "lidartwin/profile/sensor_profile.h"
-#include "lidartwin/render/frame_renderer.h"
+#include "lidartwin/frame/forward_model.h"
+#include "lidartwin/pose/pose_source.h"
 #include "lidartwin/scene/scene.h"
 
 namespace {
@@ -66,6 +67,7 @@ struct Setup {
   SensorProfile profile = load_profile("os1-128");
   Scene scene = Scene::load(kSource / "scenes/plant.glb");
   Trajectory trajectory = Trajectory::load_tum(kSource / "scenes/plant_inspection.tum");
+  TrajectoryPoses poses{trajectory};
   Metadata metadata = make_metadata(SensorInfo{}, profile.beams, [] {
     nlohmann::json config = default_config_params();
     config["lidar_mode"] = "2048x10";
@@ -181,26 +183,15 @@ struct PipelineRate {
   double return_share;  // of the pixels, those with a return
 };
 
-PipelineRate pipeline(const Setup& s, const FrameRenderer& renderer, int frames, int threads) {
-  const PacketFormat packets(s.format());
-  const int w = s.format().columns_per_frame, cpp = s.format().columns_per_packet;
-  const size_t size = packets.lidar_packet_size();
-  std::vector<uint8_t> bytes(static_cast<size_t>(w / cpp) * size);
-  Scan scan(s.format());
+PipelineRate pipeline(const Setup& s, const ForwardModel& model, int frames, int threads) {
+  const int w = s.format().columns_per_frame;
+  EncodedFrame encoded = model.make_frame_buffer();
   const Stopwatch watch;
-  for (int f = 0; f < frames; ++f) {
-    PacketHeader header;
-    header.frame_id = static_cast<uint32_t>(f);
-    renderer.render(static_cast<uint64_t>(f), s.trajectory.start_s() + f / 10.0, s.trajectory, 0, w, scan,
-                    [&](int begin, int) {
-                      const auto slot = static_cast<size_t>(begin / cpp);
-                      packets.encode(header, scan, begin, std::span<uint8_t>(bytes.data() + slot * size, size));
-                    });
-  }
+  for (int f = 0; f < frames; ++f) model.render(static_cast<uint64_t>(f), encoded);
   const double pixels = static_cast<double>(frames) * w * s.format().pixels_per_column;
   const Rate rate = watch.rate(pixels, threads);
   // The share of returns, from the last frame and outside the timing (a serial pass over it).
-  const auto& ranges = scan.channels[static_cast<size_t>(ChannelField::kRange)];
+  const auto& ranges = encoded.scan.channels[static_cast<size_t>(ChannelField::kRange)];
   const auto returns = std::count_if(ranges.begin(), ranges.end(), [](uint32_t range) { return range != 0; });
   return {rate, static_cast<double>(returns) / static_cast<double>(ranges.size())};
 }
@@ -214,11 +205,13 @@ int main(int argc, char** argv) {
   const bool only_pipeline = argc > 4 && std::string(argv[4]) == "pipeline";
   const int threads = threads_arg > 0 ? threads_arg : static_cast<int>(std::thread::hardware_concurrency());
   const Setup s;
-  RenderConfig config;
-  config.seed = 1;
-  config.threads = threads;
-  const FrameRenderer renderer(s.scene, s.profile, EffectChain::from_json(s.profile.effects, "os1-128"), s.format(),
-                               config);
+  WorkerPool pool(threads);
+  ForwardModelSetup setup;
+  setup.render = {s.metadata.beams, s.format(), s.profile.max_range_m,
+                  EffectChain::from_json(s.profile.effects, "os1-128"), 1, 1.0f};
+  setup.clock = {s.format().columns_per_frame, s.format().fps, 0, s.trajectory.start_s()};
+  const ForwardModel model(s.scene, s.poses, setup, pool);
+  const FrameRenderer& renderer = model.renderer();
   const auto rays = only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, frames, renderer.cast_range_m());
   Rate raw16, raw1, cast;
   PipelineRate pipe{};
@@ -232,7 +225,7 @@ int main(int argc, char** argv) {
   std::vector<double> ratios;
   for (int r = 0; r < repeats; ++r) {
     const Rate a = only_pipeline ? Rate{} : raw_packets(s, rays, threads);
-    const PipelineRate p = pipeline(s, renderer, frames, threads);
+    const PipelineRate p = pipeline(s, model, frames, threads);
     if (!only_pipeline) {
       keep_best(raw16, a);
       ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);

@@ -19,7 +19,6 @@ struct StreamConfig {
   bool streaming = true;        // operating_mode NORMAL (false in STANDBY)
   std::string timestamp_mode = "TIME_FROM_INTERNAL_OSC";
   float signal_multiplier = 1.0f;
-  int lidar_frame_azimuth_offset_mdeg = 0;
   uint32_t init_id = 0;         // = metadata.sensor_info.initialization_id (24 bits)
   uint64_t prod_sn = 0;         // numeric prod_sn (40 bits)
 };

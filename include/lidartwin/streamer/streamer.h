@@ -1,7 +1,8 @@
 #pragma once
-// The daemon's UDP side: renders the scene ahead of time and sends lidar packets on the column
+// The daemon's UDP side: paces and sends what the forward model makes, lidar packets on the column
 // clock and IMU packets at 100 Hz, to whatever the active StreamConfig says (protocol doc 1 items
-// 8-13, 5.1, 6). One Streamer per virtual sensor; it runs on the caller's io_context.
+// 8-13, 5.1, 6). Casting runs ahead of the send clock on a worker. One Streamer per virtual sensor;
+// it runs on the caller's io_context.
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -11,11 +12,7 @@
 
 #include <asio.hpp>
 
-#include "lidartwin/effects/effect_chain.h"
-#include "lidartwin/pose/pose.h"
-#include "lidartwin/profile/sensor_profile.h"
-#include "lidartwin/render/frame_renderer.h"
-#include "lidartwin/scene/scene.h"
+#include "lidartwin/frame/forward_model.h"
 #include "lidartwin/sensor/stream_config.h"
 
 namespace lidartwin {
@@ -23,22 +20,25 @@ namespace lidartwin {
 namespace streamer_detail {
 class UdpSender;
 class StreamSession;
-class RenderAhead;
-struct SessionTiming;
 struct StreamCounters;
 }  // namespace streamer_detail
 
 struct StreamerOptions {
   std::array<uint8_t, 4> source_address{127, 0, 0, 1};  // the sensor's own address (item 8)
-  RenderConfig render;                 // seed and threads; signal_gain comes from each config
   std::filesystem::path record_dir;    // non-empty: capture.pcap + metadata.json of what is sent
   int frames_ahead = 2;                // how far casting may run ahead of the send clock
   double start_delay_s = 0.25;         // from a reinit to frame 0: time to cast the first packets
-  int render_nice = 0;                 // nice value of the casting threads (the send clock keeps 0)
+  int render_nice = 0;                 // nice value of the render-ahead worker (the send clock keeps 0)
   // The send clock wakes this early and spins to each lidar deadline: a thread's wake-up takes
   // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10).
   int spin_us = 100;
 };
+
+// The forward model of a config (its beams, format, signal_multiplier, init_id, prod_sn) whose
+// frame 0 is observed at start_steady_ns on the host's steady clock, its column 0 stamped origin_ns.
+// Throws InputError naming a format the packet encoder cannot carry.
+using ModelFactory = std::function<std::unique_ptr<ForwardModel>(const StreamConfig& config, int64_t start_steady_ns,
+                                                                  uint64_t origin_ns)>;
 
 // Column timestamps (6.3): TIME_FROM_INTERNAL_OSC and TIME_FROM_SYNC_PULSE_IN carry the host's
 // CLOCK_MONOTONIC in ns (time since boot, as a real sensor's oscillator counts), so the timestamp
@@ -48,14 +48,14 @@ struct StreamerOptions {
 //
 // Lateness is also logged: a debug line every 10 s and an info line at stop(), "lateness p50 .. us,
 // p99 .. us, max .. us"; StreamStats carries late_packets, max_lateness_us, render_stalls and
-// render_load. Not handled: lidar_frame_azimuth_offset (frames always start at m = 0), and IMU
-// profiles other than LEGACY (a warning; no IMU packets are sent).
+// render_load. lidar_frame_azimuth_offset reaches the packets through the served beam intrinsics
+// (the model casts with them); frames always start at m = 0. Not handled: IMU profiles other than
+// LEGACY (a warning; no IMU packets are sent).
 class Streamer {
  public:
-  // scene must outlive the Streamer. Throws InputError if the sending socket cannot be bound or
-  // the record directory cannot be written.
-  Streamer(asio::io_context& io, const Scene& scene, SensorProfile profile, EffectChain chain, Trajectory trajectory,
-           StreamerOptions options);
+  // Throws InputError if the sending socket cannot be bound or the record directory cannot be
+  // written.
+  Streamer(asio::io_context& io, ModelFactory make_model, StreamerOptions options);
   ~Streamer();
   Streamer(const Streamer&) = delete;
   Streamer& operator=(const Streamer&) = delete;
@@ -73,21 +73,14 @@ class Streamer {
  private:
   void switch_to(std::shared_ptr<const StreamConfig> config);
   void start_session(std::shared_ptr<const StreamConfig> config);
-  streamer_detail::SessionTiming session_timing(const StreamConfig& config) const;
-  std::unique_ptr<streamer_detail::RenderAhead> start_rendering(std::shared_ptr<const StreamConfig> config,
-                                                                const streamer_detail::SessionTiming& timing);
   void stop_session();
   void arm_stats_timer();
   void report_stats();
   void warn_if_behind(double render_load);
 
   asio::io_context& io_;
-  const Scene& scene_;
-  SensorProfile profile_;
-  EffectChain chain_;
-  Trajectory trajectory_;
+  ModelFactory make_model_;
   StreamerOptions options_;
-  int64_t daemon_start_ns_ = 0;  // trajectory time 0
   std::unique_ptr<streamer_detail::UdpSender> sender_;
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
   asio::steady_timer stats_timer_;

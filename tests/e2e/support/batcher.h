@@ -14,7 +14,7 @@
 #include "e2e/support/udp_socket.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/lidar_packet.h"
-#include "lidartwin/streamer/packet_schedule.h"
+#include "lidartwin/frame/packet_plan.h"
 
 namespace lidartwin::e2e {
 

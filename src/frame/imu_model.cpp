@@ -1,4 +1,4 @@
-#include "lidartwin/streamer/imu_model.h"
+#include "lidartwin/frame/imu_model.h"
 
 #include <numbers>
 
@@ -23,10 +23,10 @@ Eigen::Vector3d angular_velocity(const Pose& before, const Pose& after, double i
 }
 }  // namespace
 
-ImuSample imu_sample(const Trajectory& trajectory, double time_s, uint64_t timestamp_ns, double step_s) {
-  const Pose before = trajectory.at(time_s - step_s);
-  const Pose now = trajectory.at(time_s);
-  const Pose after = trajectory.at(time_s + step_s);
+ImuSample imu_sample(const PoseSource& poses, double time_s, uint64_t timestamp_ns, double step_s) {
+  const Pose before = poses.at(time_s - step_s);
+  const Pose now = poses.at(time_s);
+  const Pose after = poses.at(time_s + step_s);
 
   // Specific force: what an accelerometer reads is acceleration minus gravity (world Z up).
   const Eigen::Vector3d acceleration_world =

@@ -1,4 +1,4 @@
-// The column clock without sockets: which packets a window sends, when they are due, which
+// The sensor's clock without sockets: which packets a window sends, when they are due, which
 // frame_id they carry, and what the IMU reads. Expected values come from the protocol doc (6.1,
 // 6.4: real windowed captures) and closed forms, not from the code's own output.
 #include <cmath>
@@ -7,8 +7,9 @@
 
 #include <gtest/gtest.h>
 
-#include "lidartwin/streamer/imu_model.h"
-#include "lidartwin/streamer/packet_schedule.h"
+#include "lidartwin/frame/imu_model.h"
+#include "lidartwin/frame/packet_plan.h"
+#include "lidartwin/frame/sensor_clock.h"
 
 namespace lidartwin {
 namespace {
@@ -54,14 +55,46 @@ TEST(PacketSchedule, ColumnsPerPacketDividesTheFrame) {
   EXPECT_EQ(packets_to_send(format_of(1024, 10, {0, 1023}, 1)).size(), 1024u);
 }
 
-TEST(ColumnClock, FramesAndColumnsFollowTheMode) {
-  const ColumnClock clock{1024, 10};
+SensorClock clock_of(int width, int fps, uint64_t origin_ns = 0, double pose_origin_s = 0.0) {
+  SensorClock clock;
+  clock.columns_per_frame = width;
+  clock.fps = fps;
+  clock.origin_ns = origin_ns;
+  clock.pose_origin_s = pose_origin_s;
+  return clock;
+}
+
+TEST(SensorClock, FramesAndColumnsFollowTheMode) {
+  const SensorClock clock = clock_of(1024, 10);
   EXPECT_EQ(clock.frame_period_ns(), 100'000'000u);
   EXPECT_EQ(clock.column_offset_ns(1), 97'656u);  // 97 656.25 ns, rounded down (6.1)
   EXPECT_EQ(clock.column_offset_ns(1024), 100'000'000u);
-  EXPECT_EQ(clock.column_time_ns(3, 1024), clock.frame_start_ns(4));
-  EXPECT_EQ(ColumnClock({512, 10}).column_offset_ns(2), 390'625u);
-  EXPECT_EQ(ColumnClock({2048, 10}).column_offset_ns(1), 48'828u);
+  EXPECT_EQ(clock.column_timestamp_ns(3, 1024), clock.column_timestamp_ns(4, 0));
+  EXPECT_EQ(clock_of(512, 10).column_offset_ns(2), 390'625u);
+  EXPECT_EQ(clock_of(2048, 10).column_offset_ns(1), 48'828u);
+}
+
+// 6.1, 6.3: column m of frame k is stamped origin + k / fps + floor(m * 1e9 / (W * fps)).
+TEST(SensorClock, TimestampsCountFromTheOrigin) {
+  const SensorClock clock = clock_of(512, 10, 1'000'000'000);
+  EXPECT_EQ(clock.column_timestamp_ns(0, 0), 1'000'000'000u);
+  EXPECT_EQ(clock.column_timestamp_ns(3, 7), 1'300'000'000u + 7 * 1'000'000'000ull / 5120);
+  // A packet leaves when its last column is observed.
+  EXPECT_EQ(clock.packet_timestamp_ns(3, 16, 16), clock.column_timestamp_ns(3, 31));
+}
+
+TEST(SensorClock, PoseTimesFollowTheColumnsFromThePoseOrigin) {
+  const SensorClock clock = clock_of(1024, 20, 0, 12.5);
+  EXPECT_DOUBLE_EQ(clock.column_pose_time_s(0, 0), 12.5);
+  EXPECT_DOUBLE_EQ(clock.column_pose_time_s(2, 512), 12.5 + 0.1 + 0.025);
+  EXPECT_DOUBLE_EQ(clock.imu_pose_time_s(3), 12.53);
+}
+
+// 5.1: IMU samples every 10 ms from the origin, on the lidar's clock.
+TEST(SensorClock, ImuSamplesShareTheLidarClock) {
+  const SensorClock clock = clock_of(1024, 20, 500);
+  EXPECT_EQ(clock.imu_timestamp_ns(0), 500u);
+  EXPECT_EQ(clock.imu_timestamp_ns(4), 500u + 40'000'000u);
 }
 
 // Deadlines of consecutive packets, across several frames, are cpp column periods apart to within
@@ -69,12 +102,12 @@ TEST(ColumnClock, FramesAndColumnsFollowTheMode) {
 TEST(PacketSchedule, DeadlinesAreEvenlySpacedAcrossFrames) {
   for (const auto& [width, fps] : std::vector<std::pair<int, int>>{{512, 10}, {1024, 10}, {1024, 20}, {2048, 10}}) {
     const auto format = format_of(width, fps, {0, width - 1});
-    const ColumnClock clock{width, fps};
+    const SensorClock clock = clock_of(width, fps);
     const double spacing_ns = 16.0 * 1e9 / (width * fps);
     std::vector<uint64_t> deadlines;
     for (uint64_t frame = 0; frame < 3; ++frame) {
       for (const int first : packets_to_send(format)) {
-        deadlines.push_back(clock.frame_start_ns(frame) + packet_deadline_offset_ns(clock, first, 16));
+        deadlines.push_back(clock.packet_timestamp_ns(frame, first, 16));
       }
     }
     for (size_t i = 1; i < deadlines.size(); ++i) {
@@ -82,7 +115,7 @@ TEST(PacketSchedule, DeadlinesAreEvenlySpacedAcrossFrames) {
       EXPECT_NEAR(step, spacing_ns, 1.0) << width << "x" << fps << " packet " << i;
     }
     // The last packet of a frame is due when its last column, W-1, is observed.
-    EXPECT_EQ(packet_deadline_offset_ns(clock, width - 16, 16), clock.column_offset_ns(width - 1));
+    EXPECT_EQ(clock.packet_due_offset_ns(width - 16, 16), clock.column_offset_ns(width - 1));
   }
 }
 
@@ -112,7 +145,7 @@ Pose pose_of(Eigen::Vector3d translation, Eigen::Quaterniond rotation) {
 }
 
 TEST(ImuModel, AtRestReadsOneGUp) {
-  const auto sample = imu_sample(Trajectory::constant(Pose{}), 1.0, 5'000'000'000);
+  const auto sample = imu_sample(StaticPose(Pose{}), 1.0, 5'000'000'000);
   EXPECT_NEAR(sample.accel_g[0], 0.0f, 1e-6f);
   EXPECT_NEAR(sample.accel_g[1], 0.0f, 1e-6f);
   EXPECT_NEAR(sample.accel_g[2], 1.0f, 1e-6f);
@@ -125,7 +158,7 @@ TEST(ImuModel, AtRestReadsOneGUp) {
 // Rolled 90 degrees about +X: the sensor's +Y points up, so gravity's reaction reads +1 g on Y.
 TEST(ImuModel, GravityIsExpressedInTheSensorFrame) {
   const Eigen::Quaterniond roll(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX()));
-  const auto sample = imu_sample(Trajectory::constant(pose_of(Eigen::Vector3d(1, 2, 3), roll)), 0.0, 1);
+  const auto sample = imu_sample(StaticPose(pose_of(Eigen::Vector3d(1, 2, 3), roll)), 0.0, 1);
   EXPECT_NEAR(sample.accel_g[0], 0.0f, 1e-6f);
   EXPECT_NEAR(sample.accel_g[1], 1.0f, 1e-6f);
   EXPECT_NEAR(sample.accel_g[2], 0.0f, 1e-6f);
@@ -139,7 +172,7 @@ TEST(ImuModel, ReadsTheTrajectorysRotationRate) {
     const Eigen::Quaterniond yaw(Eigen::AngleAxisd(0.5 * t, Eigen::Vector3d::UnitZ()));
     samples.push_back({t, pose_of(Eigen::Vector3d(2.0 * t, 0, 0), yaw)});
   }
-  const Trajectory trajectory(samples, false);
+  const TrajectoryPoses trajectory(Trajectory(samples, false));
   const auto sample = imu_sample(trajectory, 5.0, 1);
   EXPECT_NEAR(sample.gyro_deg_s[2], 0.5 * 180.0 / std::numbers::pi, 1e-3);
   EXPECT_NEAR(sample.gyro_deg_s[0], 0.0f, 1e-4f);

@@ -1,11 +1,11 @@
-#include "render/channel_encoder.h"
+#include "frame/channel_encoder.h"
 
 #include <algorithm>
 #include <cassert>
 #include <cstdint>
 #include <vector>
 
-namespace lidartwin::render_detail {
+namespace lidartwin::frame_detail {
 namespace {
 
 // range_mm = round(range_m * 1000) to the field's step; 0 means no return, and so does a range
@@ -79,4 +79,4 @@ void ChannelEncoder::clear(int column, Scan& scan) const {
   for (const ChannelField field : fields_) std::ranges::fill(scan.column(field, column), 0u);
 }
 
-}  // namespace lidartwin::render_detail
+}  // namespace lidartwin::frame_detail

@@ -1,13 +1,28 @@
-#include "render/worker_pool.h"
+#include "lidartwin/frame/worker_pool.h"
 
 #include <algorithm>
 
-namespace lidartwin::render_detail {
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
-WorkerPool::WorkerPool(int threads) {
+namespace lidartwin {
+
+void run_at_normal_priority(int nice) {
+  const sched_param normal{};
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);  // per thread on Linux
+}
+
+
+WorkerPool::WorkerPool(int threads, int nice) {
   const int total = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   for (int worker = 1; worker < total; ++worker) {
-    threads_.emplace_back([this, worker](std::stop_token stop) { worker_loop(stop, worker); });
+    threads_.emplace_back([this, worker, nice](std::stop_token stop) {
+      run_at_normal_priority(nice);
+      worker_loop(stop, worker);
+    });
   }
 }
 
@@ -65,4 +80,4 @@ void WorkerPool::run(int count, const std::function<void(int worker, int item)>&
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
 }
 
-}  // namespace lidartwin::render_detail
+}  // namespace lidartwin

@@ -1,12 +1,11 @@
-#include "lidartwin/streamer/packet_schedule.h"
+#include "lidartwin/frame/packet_plan.h"
 
+#include <array>
 #include <cassert>
 
 namespace lidartwin {
 
 namespace {
-constexpr uint64_t kNsPerSecond = 1'000'000'000;
-
 // Whether packet [first, first + cpp) meets the inclusive window; a window with c0 > c1 wraps
 // through m = 0 (6.4).
 bool packet_meets_window(int first, int columns_per_packet, const std::array<int, 2>& window) {
@@ -17,20 +16,6 @@ bool packet_meets_window(int first, int columns_per_packet, const std::array<int
 }
 }  // namespace
 
-uint64_t ColumnClock::frame_period_ns() const { return kNsPerSecond / static_cast<uint64_t>(fps); }
-
-uint64_t ColumnClock::column_offset_ns(int measurement_id) const {
-  assert(measurement_id >= 0 && measurement_id <= columns_per_frame);
-  const auto columns_per_second = static_cast<uint64_t>(columns_per_frame) * static_cast<uint64_t>(fps);
-  return static_cast<uint64_t>(measurement_id) * kNsPerSecond / columns_per_second;
-}
-
-uint64_t ColumnClock::frame_start_ns(uint64_t frame_index) const { return frame_index * frame_period_ns(); }
-
-uint64_t ColumnClock::column_time_ns(uint64_t frame_index, int measurement_id) const {
-  return frame_start_ns(frame_index) + column_offset_ns(measurement_id);
-}
-
 std::vector<int> packets_to_send(const LidarDataFormat& format) {
   const int cpp = format.columns_per_packet;
   assert(cpp > 0 && format.columns_per_frame % cpp == 0);
@@ -39,10 +24,6 @@ std::vector<int> packets_to_send(const LidarDataFormat& format) {
     if (packet_meets_window(first, cpp, format.column_window)) firsts.push_back(first);
   }
   return firsts;
-}
-
-uint64_t packet_deadline_offset_ns(const ColumnClock& clock, int first_column, int columns_per_packet) {
-  return clock.column_offset_ns(first_column + columns_per_packet - 1);
 }
 
 bool uses_fusa_header(const LidarDataFormat& format) {

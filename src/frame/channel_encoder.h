@@ -9,7 +9,7 @@
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/packet/scan.h"
 
-namespace lidartwin::render_detail {
+namespace lidartwin::frame_detail {
 
 // A channel's conversion: value (in protocol units, after scale) -> multiple of step, at most max.
 struct ChannelLimits {
@@ -36,4 +36,4 @@ class ChannelEncoder {
   std::vector<ChannelField> fields_;  // every channel the profile carries
 };
 
-}  // namespace lidartwin::render_detail
+}  // namespace lidartwin::frame_detail

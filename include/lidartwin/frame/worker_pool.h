@@ -1,7 +1,8 @@
 #pragma once
-// A small pool owned by one renderer: the caller and threads-1 workers drain a shared counter of
-// work items. Which thread runs an item never changes its result (items write disjoint outputs,
-// noise is keyed by pixel), so the thread count is free.
+// The render workers: the caller and threads-1 workers drain a shared counter of work items. Which
+// thread runs an item never changes its result (items write disjoint outputs, noise is keyed by
+// pixel), so the thread count is free. One pool serves every sensor of a process (a rig): runs
+// from several callers take turns, each a packet-sized chunk of work.
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -12,12 +13,17 @@
 #include <utility>
 #include <vector>
 
-namespace lidartwin::render_detail {
+namespace lidartwin {
+
+// Leaves any real-time scheduling policy the calling thread inherited and sets its nice value.
+void run_at_normal_priority(int nice);
 
 class WorkerPool {
  public:
   // threads: total including the calling thread; 0 = std::thread::hardware_concurrency().
-  explicit WorkerPool(int threads);
+  // The workers leave any real-time policy they inherit (the daemon's send clock may run as
+  // SCHED_FIFO and must win the CPU from casting) and run at the given nice value.
+  explicit WorkerPool(int threads, int nice = 0);
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
@@ -44,4 +50,4 @@ class WorkerPool {
   std::vector<std::jthread> threads_;  // last: stopped and joined before the members above go
 };
 
-}  // namespace lidartwin::render_detail
+}  // namespace lidartwin

@@ -1,0 +1,76 @@
+#pragma once
+// The forward model of one sensor: frame k as the lidar packets a real sensor sends (stamped on
+// the sensor's clock, status from the column window, headers with init_id, prod_sn and frame_id,
+// encoded with their CRC), and the IMU packets on the same clock. The streamer only paces and sends
+// what it makes, `record` only writes it, and the analysis calls the same model.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "lidartwin/frame/frame_renderer.h"
+#include "lidartwin/frame/sensor_clock.h"
+#include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/packet/imu_packet.h"
+#include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/packet/scan.h"
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/scene/scene.h"
+
+namespace lidartwin {
+
+struct ForwardModelSetup {
+  RenderSetup render;
+  SensorClock clock;       // columns_per_frame and fps must match render.format
+  uint32_t init_id = 0;    // header fields of every packet (4.3)
+  uint64_t prod_sn = 0;
+};
+
+// A frame's worth of output, owned and reused by the caller (no allocation per frame).
+struct EncodedFrame {
+  Scan scan;                   // the frame's columns, which its packets are encoded from
+  FrameColumns columns;        // poses and observed columns of the frame
+  std::vector<uint8_t> bytes;  // the frame's packets back to back, in packet_columns() order
+};
+
+class ForwardModel {
+ public:
+  // scene, poses and pool must outlive the model. Throws InputError naming a format the packet
+  // encoder cannot carry.
+  ForwardModel(const Scene& scene, const PoseSource& poses, ForwardModelSetup setup, WorkerPool& pool);
+  ~ForwardModel();
+  ForwardModel(const ForwardModel&) = delete;
+  ForwardModel& operator=(const ForwardModel&) = delete;
+
+  const LidarDataFormat& format() const;
+  const SensorClock& clock() const;
+  const FrameRenderer& renderer() const;
+  // First measurement ids of the packets each frame sends (packets_to_send), in send order.
+  const std::vector<int>& packet_columns() const;
+  size_t packet_size() const;
+  EncodedFrame make_frame_buffer() const;
+
+  // Renders packets [begin, end) (indices into packet_columns()) of frame k into out. Each packet
+  // is encoded by the worker that finished its columns. A column is observed when it lies in the
+  // column window (6.4) and the pose source answers for its time; others go out with status 0 and
+  // zero pixels. The same frame is byte-identical for any thread count or packet split.
+  void render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const;
+  void render(uint64_t frame, EncodedFrame& out) const { render(frame, 0, packet_columns().size(), out); }
+  std::span<const uint8_t> packet(const EncodedFrame& frame, size_t index) const;
+  // When packet `index` of frame k leaves the sensor: its last column's timestamp (protocol doc 1).
+  uint64_t packet_timestamp_ns(uint64_t frame, size_t index) const;
+  // Packet `index` of frame k with no observed column but its true timestamps, ids and frame_id:
+  // what the daemon sends when rendering has fallen behind. Encoded into scratch's slot for it.
+  std::span<const uint8_t> blank_packet(uint64_t frame, size_t index, EncodedFrame& scratch) const;
+
+  // IMU sample i (100 Hz from the clock's origin), read from the motion at clock.imu_pose_time_s(i)
+  // and stamped clock.imu_timestamp_ns(i), as a LEGACY IMU packet (5.1).
+  void imu_packet(uint64_t sample, std::span<uint8_t, kLegacyImuPacketSize> out) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lidartwin

@@ -1,0 +1,60 @@
+#pragma once
+// Where the sensor is at a given time: the one question the forward model asks of motion. A static
+// pose and a TUM trajectory answer for any time; live sources (a HIL rig's pose stream, a vehicle
+// with sensor mountings) answer only for the span they have heard about, and say so through span().
+#include <limits>
+#include <memory>
+
+#include "lidartwin/pose/pose.h"
+
+namespace lidartwin {
+
+// The times, in seconds on the source's clock, for which at() gives a pose it stands behind.
+struct PoseSpan {
+  double begin_s = -std::numeric_limits<double>::infinity();
+  double end_s = std::numeric_limits<double>::infinity();
+  bool contains(double time_s) const { return time_s >= begin_s && time_s <= end_s; }
+  friend bool operator==(const PoseSpan&, const PoseSpan&) = default;
+};
+
+// world_from_sensor over time. Implementations are read from several threads at once (the render
+// workers cast columns in parallel), so at() and span() must be safe to call concurrently.
+class PoseSource {
+ public:
+  virtual ~PoseSource() = default;
+  // The pose at time_s; callers ask only for times inside span() (outside, the answer is the
+  // source's best guess and the column is not observed: see ForwardModel).
+  virtual Pose at(double time_s) const = 0;
+  // What the source can answer for now. A live source's span grows as poses arrive ("not yet"
+  // beyond its end) and may drop its beginning ("stale").
+  virtual PoseSpan span() const = 0;
+  // The time at which a recording from this source naturally starts (a trajectory's first pose).
+  virtual double start_s() const = 0;
+};
+
+// One pose forever.
+class StaticPose final : public PoseSource {
+ public:
+  explicit StaticPose(const Pose& pose) : pose_(pose) {}
+  Pose at(double) const override { return pose_; }
+  PoseSpan span() const override { return {}; }
+  double start_s() const override { return 0.0; }
+
+ private:
+  Pose pose_;
+};
+
+// A trajectory (TUM file): looping, or holding its end poses, it answers for any time.
+class TrajectoryPoses final : public PoseSource {
+ public:
+  explicit TrajectoryPoses(Trajectory trajectory) : trajectory_(std::move(trajectory)) {}
+  Pose at(double time_s) const override { return trajectory_.at(time_s); }
+  PoseSpan span() const override { return {}; }
+  double start_s() const override { return trajectory_.start_s(); }
+  const Trajectory& trajectory() const { return trajectory_; }
+
+ private:
+  Trajectory trajectory_;
+};
+
+}  // namespace lidartwin

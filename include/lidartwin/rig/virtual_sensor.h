@@ -1,0 +1,84 @@
+#pragma once
+// One virtual sensor as a client sees it: the sensor state machine behind its HTTP API, and a
+// streamer that follows the active config with packets from the forward model. A rig holds several,
+// sharing one scene, one motion, one io_context and one worker pool.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <thread>
+
+#include <asio.hpp>
+
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/http_api/http_server.h"
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/profile/sensor_profile.h"
+#include "lidartwin/scene/scene.h"
+#include "lidartwin/sensor/sensor.h"
+#include "lidartwin/streamer/streamer.h"
+
+namespace lidartwin {
+
+// What the sensors of a rig share. All must outlive the sensors.
+struct RigContext {
+  asio::io_context& io;  // runs every sensor's send clock
+  const Scene& scene;
+  const PoseSource& poses;
+  WorkerPool& pool;
+  // The steady-clock instant at which the pose source's time is poses.start_s(): the rig's time
+  // zero, so that sensors started together see the same motion at the same instant.
+  int64_t epoch_steady_ns = 0;
+};
+
+// Who one sensor is and how it is reached.
+struct VirtualSensorSetup {
+  SensorIdentity identity;   // product, serial number and beams as served
+  SensorOptions sensor;      // state file, config overrides
+  HttpServerOptions http;    // its address and port
+  StreamerOptions streamer;  // its source address, --record, pacing
+  double max_range_m = 100.0;  // the profile's range limit (casting stops 1 m beyond it)
+  EffectChain chain;         // the profile's physics
+  uint64_t seed = 0;         // noise seed
+};
+
+class VirtualSensor {
+ public:
+  // Throws InputError for a config the sensor refuses (state file, overrides) or a socket the
+  // streamer cannot bind.
+  VirtualSensor(const RigContext& rig, VirtualSensorSetup setup);
+  ~VirtualSensor();  // stop()
+  VirtualSensor(const VirtualSensor&) = delete;
+  VirtualSensor& operator=(const VirtualSensor&) = delete;
+
+  // Binds the HTTP server (throws BindError) and starts following the sensor's config: from here
+  // the rig's io_context streams for this sensor, and its stream stats reach the sensor's telemetry
+  // once a second.
+  void start();
+  // On the io thread (or before it runs): stops streaming, so that io_context::run() can return
+  // once every sensor has stopped.
+  void stop_streaming();
+  // After the io_context has stopped: stops the stats, the config subscription and the HTTP server.
+  // Idempotent.
+  void stop();
+
+  Sensor& sensor() { return sensor_; }
+  const HttpServer& http() const { return http_; }
+
+ private:
+  std::unique_ptr<ForwardModel> make_model(const StreamConfig& config, int64_t start_steady_ns,
+                                           uint64_t origin_ns) const;
+  void pump_stats(const std::stop_token& stop);
+
+  RigContext rig_;
+  double max_range_m_;
+  EffectChain chain_;
+  uint64_t seed_;
+  Sensor sensor_;
+  HttpServer http_;
+  Streamer streamer_;
+  int subscription_ = 0;
+  std::jthread stats_pump_;
+};
+
+}  // namespace lidartwin

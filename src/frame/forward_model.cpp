@@ -1,0 +1,146 @@
+// The forward model: the one place that stamps columns, builds packet headers and encodes frames.
+#include "lidartwin/frame/forward_model.h"
+
+#include <cassert>
+
+#include "lidartwin/frame/imu_model.h"
+#include "lidartwin/frame/packet_plan.h"
+
+namespace lidartwin {
+
+struct ForwardModel::Impl {
+  Impl(const Scene& scene, const PoseSource& pose_source, ForwardModelSetup model_setup, WorkerPool& pool)
+      : poses(pose_source),
+        clock(model_setup.clock),
+        init_id(model_setup.init_id),
+        prod_sn(model_setup.prod_sn),
+        packets(model_setup.render.format),  // validates the format first
+        renderer(scene, std::move(model_setup.render), pool),
+        firsts(packets_to_send(packets.format())) {
+    const LidarDataFormat& f = packets.format();
+    assert(clock.columns_per_frame == f.columns_per_frame && clock.fps == f.fps);
+    valid_status = f.udp_profile_lidar == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;  // 4.2, 4.4
+    index_of_first.assign(static_cast<size_t>(f.columns_per_frame / f.columns_per_packet), -1);
+    for (size_t i = 0; i < firsts.size(); ++i) {
+      index_of_first[static_cast<size_t>(firsts[i] / f.columns_per_packet)] = static_cast<int>(i);
+    }
+  }
+
+  const LidarDataFormat& format() const { return packets.format(); }
+  int columns_per_packet() const { return format().columns_per_packet; }
+
+  PacketHeader header_of(uint64_t frame) const {
+    PacketHeader header;
+    header.frame_id = frame_id_of(frame, format());
+    header.init_id = init_id;
+    header.prod_sn = prod_sn;
+    return header;
+  }
+
+  std::span<uint8_t> slot(EncodedFrame& out, size_t index) const {
+    const size_t size = packets.lidar_packet_size();
+    return {out.bytes.data() + index * size, size};
+  }
+
+  // Columns [first, last) of frame k: when each was observed, from where, whether at all, and
+  // the timestamp and status the packets carry for it (6.3, 6.4).
+  void stamp_columns(uint64_t frame, int first, int last, EncodedFrame& out) const {
+    out.columns.frame_index = frame;
+    const PoseSpan span = poses.span();
+    for (int m = first; m < last; ++m) {
+      const auto column = static_cast<size_t>(m);
+      const double time_s = clock.column_pose_time_s(frame, m);
+      const bool observed = column_in_window(format().column_window, m) && span.contains(time_s);
+      out.columns.observed[column] = observed;
+      if (observed) out.columns.poses[column] = poses.at(time_s);
+      out.scan.timestamp_ns[column] = clock.column_timestamp_ns(frame, m);
+      out.scan.status[column] = observed ? valid_status : 0u;
+    }
+  }
+
+  // Packets [begin, end) whose columns are contiguous.
+  void render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
+    const int cpp = columns_per_packet();
+    const int first = firsts[begin];
+    const int last = firsts[end - 1] + cpp;
+    assert(last - first == static_cast<int>(end - begin) * cpp);
+    stamp_columns(frame, first, last, out);
+    const PacketHeader header = header_of(frame);
+    renderer.render(out.columns, first, last, out.scan, [&](int block_begin, int) {
+      const int index = index_of_first[static_cast<size_t>(block_begin / cpp)];
+      packets.encode(header, out.scan, block_begin, slot(out, static_cast<size_t>(index)));
+    });
+  }
+
+  const PoseSource& poses;
+  SensorClock clock;
+  uint32_t init_id;
+  uint64_t prod_sn;
+  PacketFormat packets;
+  FrameRenderer renderer;
+  std::vector<int> firsts;
+  std::vector<int> index_of_first;  // packet slot in the frame -> index in firsts, -1 = not sent
+  uint32_t valid_status = 1;
+};
+
+ForwardModel::ForwardModel(const Scene& scene, const PoseSource& poses, ForwardModelSetup setup, WorkerPool& pool)
+    : impl_(std::make_unique<Impl>(scene, poses, std::move(setup), pool)) {}
+
+ForwardModel::~ForwardModel() = default;
+
+const LidarDataFormat& ForwardModel::format() const { return impl_->format(); }
+const SensorClock& ForwardModel::clock() const { return impl_->clock; }
+const FrameRenderer& ForwardModel::renderer() const { return impl_->renderer; }
+const std::vector<int>& ForwardModel::packet_columns() const { return impl_->firsts; }
+size_t ForwardModel::packet_size() const { return impl_->packets.lidar_packet_size(); }
+
+EncodedFrame ForwardModel::make_frame_buffer() const {
+  EncodedFrame frame;
+  frame.scan = Scan(format());
+  const auto width = static_cast<size_t>(format().columns_per_frame);
+  frame.columns.poses.resize(width);
+  frame.columns.observed.assign(width, 0);
+  frame.bytes.resize(impl_->firsts.size() * packet_size());
+  return frame;
+}
+
+void ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
+  const auto& firsts = impl_->firsts;
+  assert(begin <= end && end <= firsts.size());
+  const int cpp = impl_->columns_per_packet();
+  // A wrapping column window sends two runs of consecutive packets (6.4); render each as one.
+  while (begin < end) {
+    size_t run_end = begin + 1;
+    while (run_end < end && firsts[run_end] == firsts[run_end - 1] + cpp) ++run_end;
+    impl_->render_run(frame, begin, run_end, out);
+    begin = run_end;
+  }
+}
+
+std::span<const uint8_t> ForwardModel::packet(const EncodedFrame& frame, size_t index) const {
+  const size_t size = packet_size();
+  return {frame.bytes.data() + index * size, size};
+}
+
+uint64_t ForwardModel::packet_timestamp_ns(uint64_t frame, size_t index) const {
+  return impl_->clock.packet_timestamp_ns(frame, impl_->firsts[index], impl_->columns_per_packet());
+}
+
+std::span<const uint8_t> ForwardModel::blank_packet(uint64_t frame, size_t index, EncodedFrame& scratch) const {
+  const Impl& impl = *impl_;
+  const int first = impl.firsts[index];
+  for (int m = first; m < first + impl.columns_per_packet(); ++m) {
+    scratch.scan.timestamp_ns[static_cast<size_t>(m)] = impl.clock.column_timestamp_ns(frame, m);
+    scratch.scan.status[static_cast<size_t>(m)] = 0;
+  }
+  const std::span<uint8_t> out = impl.slot(scratch, index);
+  impl.packets.encode(impl.header_of(frame), scratch.scan, first, out);
+  return out;
+}
+
+void ForwardModel::imu_packet(uint64_t sample, std::span<uint8_t, kLegacyImuPacketSize> out) const {
+  const SensorClock& clock = impl_->clock;
+  encode_legacy_imu(imu_sample(impl_->poses, clock.imu_pose_time_s(sample), clock.imu_timestamp_ns(sample)), out);
+}
+
+}  // namespace lidartwin

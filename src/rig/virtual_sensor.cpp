@@ -1,0 +1,78 @@
+#include "lidartwin/rig/virtual_sensor.h"
+
+#include <condition_variable>
+#include <mutex>
+
+#include "lidartwin/frame/forward_model.h"
+
+namespace lidartwin {
+
+VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
+    : rig_(rig),
+      max_range_m_(setup.max_range_m),
+      chain_(std::move(setup.chain)),
+      seed_(setup.seed),
+      sensor_(std::move(setup.identity), std::move(setup.sensor)),
+      http_(sensor_, std::move(setup.http)),
+      streamer_(
+          rig.io,
+          [this](const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns) {
+            return make_model(config, start_steady_ns, origin_ns);
+          },
+          std::move(setup.streamer)) {}
+
+VirtualSensor::~VirtualSensor() {
+  stop();
+  stop_streaming();  // a no-op when the rig stopped it on the io thread
+}
+
+// The model of the config as served: its beams (lidar_frame_azimuth_offset rotates them), format,
+// signal_multiplier and identity; the profile's physics; the rig's motion on the rig's time.
+std::unique_ptr<ForwardModel> VirtualSensor::make_model(const StreamConfig& config, int64_t start_steady_ns,
+                                                        uint64_t origin_ns) const {
+  const LidarDataFormat& format = config.metadata.format;
+  ForwardModelSetup setup;
+  setup.render = {config.metadata.beams, format, max_range_m_, chain_, seed_, config.signal_multiplier};
+  setup.clock.columns_per_frame = format.columns_per_frame;
+  setup.clock.fps = format.fps;
+  setup.clock.origin_ns = origin_ns;
+  setup.clock.pose_origin_s = rig_.poses.start_s() + static_cast<double>(start_steady_ns - rig_.epoch_steady_ns) * 1e-9;
+  setup.init_id = config.init_id;
+  setup.prod_sn = config.prod_sn;
+  return std::make_unique<ForwardModel>(rig_.scene, rig_.poses, std::move(setup), rig_.pool);
+}
+
+void VirtualSensor::start() {
+  http_.start();
+  subscription_ = sensor_.subscribe([this](const Sensor::StreamConfigPtr& config) { streamer_.apply(config); });
+  stats_pump_ = std::jthread([this](std::stop_token stop) { pump_stats(stop); });
+}
+
+// Stats go to the sensor from a thread of their own: the send clock must never wait for the
+// sensor's lock, which HTTP threads hold.
+void VirtualSensor::pump_stats(const std::stop_token& stop) {
+  run_at_normal_priority(0);  // not the send clock's SCHED_FIFO
+  std::mutex mutex;
+  std::condition_variable_any tick;
+  std::unique_lock lock(mutex);
+  while (!tick.wait_for(lock, stop, std::chrono::seconds(1), [] { return false; })) {
+    if (stop.stop_requested()) break;
+    sensor_.set_stream_stats(streamer_.stats());
+  }
+}
+
+void VirtualSensor::stop_streaming() { streamer_.stop(); }
+
+void VirtualSensor::stop() {
+  if (stats_pump_.joinable()) {
+    stats_pump_.request_stop();
+    stats_pump_.join();
+  }
+  if (subscription_ != 0) {
+    sensor_.unsubscribe(subscription_);
+    subscription_ = 0;
+  }
+  http_.stop();
+}
+
+}  // namespace lidartwin

@@ -1,0 +1,237 @@
+// The forward model as a client would decode its packets: protocol units on the wire's steps,
+// column windows, status words, timestamps and headers, columns without a pose, blank packets, and
+// the same bytes for any thread count or packet split.
+#include <filesystem>
+#include <string>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/frame/forward_model.h"
+#include "lidartwin/frame/packet_plan.h"
+#include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/profile/sensor_profile.h"
+#include "support/test_scene.h"
+
+namespace lidartwin {
+namespace {
+
+constexpr uint32_t kInitId = 0x123456;
+constexpr uint64_t kProdSn = 992200000042;
+
+// A pose source that knows only [begin_s, end_s], as a live stream would.
+class WindowedPoses final : public PoseSource {
+ public:
+  WindowedPoses(double begin_s, double end_s) : span_{begin_s, end_s} {}
+  Pose at(double) const override { return Pose{}; }
+  PoseSpan span() const override { return span_; }
+  double start_s() const override { return span_.begin_s; }
+
+ private:
+  PoseSpan span_;
+};
+
+class FrameTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = std::filesystem::temp_directory_path() / ("lidartwin_frame_test_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+    // A closed 20 m x 20 m x 10 m room around the sensor: every beam hits a wall 5-14 m away.
+    test::write_glb(dir_ / "room.glb", {test::box("room", {-10, -10, -5}, {10, 10, 5}, 0.3f)});
+    scene_ = new Scene(Scene::load(dir_ / "room.glb"));
+    profile_ = new SensorProfile(load_profile("os1-64"));
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    delete profile_;
+    std::filesystem::remove_all(dir_);
+  }
+
+  static LidarDataFormat format(UdpProfileLidar profile) {
+    LidarDataFormat f;
+    f.udp_profile_lidar = profile;
+    f.pixels_per_column = 64;
+    f.columns_per_frame = 512;
+    f.fps = 10;
+    f.column_window = {0, 511};
+    f.pixel_shift_by_row.assign(64, 0);
+    return f;
+  }
+
+  static ForwardModelSetup setup(const LidarDataFormat& f, const nlohmann::json& chain) {
+    ForwardModelSetup s;
+    s.render = {profile_->beams, f, profile_->max_range_m, EffectChain::from_json(chain, "test chain"), 5, 1.0f};
+    s.clock.columns_per_frame = f.columns_per_frame;
+    s.clock.fps = f.fps;
+    s.clock.origin_ns = 1'000'000'000;
+    s.init_id = kInitId;
+    s.prod_sn = kProdSn;
+    return s;
+  }
+
+  // Frame `frame` as the bytes of its packets.
+  static std::vector<uint8_t> render_bytes(const LidarDataFormat& f, int threads, const nlohmann::json& chain,
+                                           uint64_t frame = 3, size_t split = 0) {
+    WorkerPool pool(threads);
+    const StaticPose poses(Pose{});
+    const ForwardModel model(*scene_, poses, setup(f, chain), pool);
+    EncodedFrame encoded = model.make_frame_buffer();
+    if (split == 0) {
+      model.render(frame, encoded);
+    } else {
+      model.render(frame, split, model.packet_columns().size(), encoded);  // out of order on purpose
+      model.render(frame, 0, split, encoded);
+    }
+    return encoded.bytes;
+  }
+
+  // Frame `frame` decoded from its packets, as a client sees it.
+  static Scan render(const LidarDataFormat& f, const nlohmann::json& chain, uint64_t frame = 3,
+                     const PoseSource& poses = StaticPose(Pose{})) {
+    WorkerPool pool(2);
+    const ForwardModel model(*scene_, poses, setup(f, chain), pool);
+    EncodedFrame encoded = model.make_frame_buffer();
+    model.render(frame, encoded);
+    return decode(model, encoded);
+  }
+
+  static Scan decode(const ForwardModel& model, const EncodedFrame& encoded) {
+    const PacketFormat packets(model.format());
+    Scan scan(model.format());
+    for (size_t i = 0; i < model.packet_columns().size(); ++i) {
+      std::string error;
+      EXPECT_TRUE(packets.decode(model.packet(encoded, i), scan, &error).has_value()) << error;
+    }
+    return scan;
+  }
+
+  static inline std::filesystem::path dir_;
+  static inline Scene* scene_ = nullptr;
+  static inline SensorProfile* profile_ = nullptr;
+};
+
+const nlohmann::json kIdeal = nlohmann::json::parse(
+    R"([{"name": "radiometry"}, {"name": "range_limits", "min_m": 0.3, "max_m": 100}, {"name": "range_quantization"}])");
+
+TEST_F(FrameTest, AnyThreadCountGivesTheSameBytes) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  EXPECT_EQ(render_bytes(f, 1, profile_->effects), render_bytes(f, 3, profile_->effects));
+}
+
+TEST_F(FrameTest, AnyPacketSplitGivesTheSameBytes) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  EXPECT_EQ(render_bytes(f, 2, profile_->effects), render_bytes(f, 2, profile_->effects, 3, 7));
+}
+
+TEST_F(FrameTest, HeadersCarryTheSensorsIdentityAndFrameId) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  const Scan scan = render(f, kIdeal, 70'001);
+  EXPECT_EQ(scan.header.init_id, kInitId);
+  EXPECT_EQ(scan.header.prod_sn, kProdSn);
+  EXPECT_EQ(scan.header.frame_id, frame_id_of(70'001, f));
+  EXPECT_EQ(scan.header.frame_id, 70'001u % 65'536u);
+}
+
+TEST_F(FrameTest, Rng15RangesAndNearIrSitOnTheirSteps) {
+  const Scan scan = render(format(UdpProfileLidar::kRng15Rfl8Nir8), kIdeal);
+  size_t returns = 0;
+  for (const uint32_t range : scan.channels[static_cast<size_t>(ChannelField::kRange)]) {
+    EXPECT_EQ(range % 8, 0u);
+    returns += range != 0;
+  }
+  EXPECT_EQ(returns, scan.channels[0].size());  // the room closes every beam
+  for (const uint32_t nir : scan.channels[static_cast<size_t>(ChannelField::kNearIr)]) {
+    EXPECT_EQ(nir % 16, 0u);
+    EXPECT_LE(nir, 4080u);
+  }
+  for (const uint32_t reflectivity : scan.channels[static_cast<size_t>(ChannelField::kReflectivity)]) {
+    EXPECT_LE(reflectivity, 255u);
+  }
+}
+
+// 6.4: only packets meeting the window are sent; their columns outside it are invalid and empty.
+TEST_F(FrameTest, ColumnsOutsideTheWindowAreInvalidAndEmpty) {
+  auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  f.column_window = {100, 200};
+  const Scan scan = render(f, kIdeal);
+  for (int m = 0; m < f.columns_per_frame; ++m) {
+    const bool sent = m >= 96 && m < 208;
+    EXPECT_EQ(scan.packet_received[static_cast<size_t>(m / 16)] != 0, sent) << m;
+    if (!sent) continue;
+    const bool inside = m >= 100 && m <= 200;
+    EXPECT_EQ(scan.status[static_cast<size_t>(m)], inside ? 1u : 0u) << m;
+    const auto ranges = scan.column(ChannelField::kRange, m);
+    const auto signal = scan.column(ChannelField::kSignal, m);
+    for (int r = 0; r < 64; ++r) {
+      EXPECT_EQ(ranges[static_cast<size_t>(r)] != 0, inside) << m << "," << r;
+      if (!inside) {
+        EXPECT_EQ(signal[static_cast<size_t>(r)], 0u);
+      }
+    }
+  }
+}
+
+TEST_F(FrameTest, LegacyValidColumnsAreAllOnes) {
+  const Scan scan = render(format(UdpProfileLidar::kLegacy), kIdeal);
+  for (const uint32_t status : scan.status) EXPECT_EQ(status, 0xFFFFFFFFu);
+}
+
+// 6.1, 6.3: column m at origin + frame start + floor(m * 1e9 / (W * fps)).
+TEST_F(FrameTest, TimestampsFollowTheSensorClock) {
+  const Scan scan = render(format(UdpProfileLidar::kRng19Rfl8Sig16Nir16), kIdeal);
+  for (uint64_t m = 0; m < 512; ++m) {
+    EXPECT_EQ(scan.timestamp_ns[m], 1'000'000'000ull + 300'000'000ull + m * 1'000'000'000ull / 5120);
+  }
+}
+
+// A live source that has no pose yet for the second half of the frame: those columns go out on
+// time, invalid and empty, instead of cast from a guess.
+TEST_F(FrameTest, ColumnsWithoutAPoseAreInvalidAndEmpty) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  const WindowedPoses poses(0.0, 0.35);  // frame 3 runs from 0.3 s to 0.4 s
+  const Scan scan = render(f, kIdeal, 3, poses);
+  for (int m = 0; m < 512; ++m) {
+    const bool has_pose = 0.3 + m / 5120.0 <= 0.35;
+    EXPECT_EQ(scan.status[static_cast<size_t>(m)], has_pose ? 1u : 0u) << m;
+    EXPECT_EQ(scan.column(ChannelField::kRange, m)[0] != 0, has_pose) << m;
+  }
+}
+
+// What the daemon sends when rendering falls behind: on time, right ids, nothing valid.
+TEST_F(FrameTest, BlankPacketsAreStampedButInvalid) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  WorkerPool pool(1);
+  const StaticPose poses(Pose{});
+  const ForwardModel model(*scene_, poses, setup(f, kIdeal), pool);
+  EncodedFrame scratch = model.make_frame_buffer();
+  const auto bytes = model.blank_packet(9, 2, scratch);
+  Scan scan(f);
+  const PacketFormat packets(f);
+  ASSERT_TRUE(packets.decode(bytes, scan, nullptr).has_value());
+  EXPECT_EQ(scan.header.frame_id, 9u);
+  EXPECT_EQ(scan.header.init_id, kInitId);
+  for (int m = 32; m < 48; ++m) {
+    EXPECT_EQ(scan.status[static_cast<size_t>(m)], 0u);
+    EXPECT_EQ(scan.timestamp_ns[static_cast<size_t>(m)], model.clock().column_timestamp_ns(9, m));
+    for (const uint32_t range : scan.column(ChannelField::kRange, m)) EXPECT_EQ(range, 0u);
+  }
+  EXPECT_EQ(model.packet_timestamp_ns(9, 2), model.clock().column_timestamp_ns(9, 47));
+}
+
+TEST_F(FrameTest, ImuPacketsShareTheLidarClock) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  WorkerPool pool(1);
+  const StaticPose poses(Pose{});
+  const ForwardModel model(*scene_, poses, setup(f, kIdeal), pool);
+  std::array<uint8_t, kLegacyImuPacketSize> bytes{};
+  model.imu_packet(12, bytes);
+  const auto sample = decode_legacy_imu(bytes);
+  ASSERT_TRUE(sample.has_value());
+  EXPECT_EQ(sample->sys_ts_ns, 1'000'000'000u + 12 * kImuPeriodNs);
+  EXPECT_NEAR(sample->accel_g[2], 1.0f, 1e-6f);  // at rest, Z up
+}
+
+}  // namespace
+}  // namespace lidartwin

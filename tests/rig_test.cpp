@@ -1,0 +1,90 @@
+// Several VirtualSensors in one process, as a rig holds them: one scene, one motion, one io_context
+// and one worker pool. Each answers on its own address and sends its own packets, and an SDK-1.0
+// client of each gets complete scans carrying its sensor's serial number.
+#include <chrono>
+#include <memory>
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+// Eigen (through lidartwin's headers) before httplib (through sdk_client.h): <resolv.h>, which
+// httplib includes, defines a macro `res` that breaks Eigen's product kernels.
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/profile/sensor_profile.h"
+#include "lidartwin/rig/virtual_sensor.h"
+#include "support/test_scene.h"
+// clang-format off
+#include "e2e/support/batcher.h"
+#include "e2e/support/sdk_client.h"
+#include "e2e/support/udp_socket.h"
+// clang-format on
+
+namespace lidartwin {
+namespace {
+
+using e2e::UdpSocket;
+
+VirtualSensorSetup setup_for(const std::string& address, const std::string& serial) {
+  const SensorProfile profile = load_profile("os1-32");
+  VirtualSensorSetup setup;
+  setup.identity.prod_line = profile.prod_line;
+  setup.identity.prod_pn = profile.prod_pn;
+  setup.identity.prod_sn = serial;
+  setup.identity.beams = profile.beams;
+  setup.identity.limits.lidar_modes = profile.lidar_modes;
+  setup.http.address = address;
+  setup.http.port = 0;
+  setup.streamer.source_address = asio::ip::make_address_v4(address).to_bytes();
+  setup.max_range_m = profile.max_range_m;
+  setup.chain = EffectChain::from_json(profile.effects, "os1-32");
+  setup.seed = 7;
+  return setup;
+}
+
+TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
+  const auto dir = std::filesystem::temp_directory_path() / "lidartwin_rig_test";
+  std::filesystem::create_directories(dir);
+  test::write_glb(dir / "room.glb", {test::box("room", {-4, -3, -1.5}, {4, 3, 1.5}, 0.4f)});
+  const Scene scene = Scene::load(dir / "room.glb");
+  std::filesystem::remove_all(dir);
+  const StaticPose poses(Pose{});
+  asio::io_context io;
+  WorkerPool pool(2);
+  const RigContext rig{io, scene, poses, pool, 0};
+  std::vector<std::unique_ptr<VirtualSensor>> sensors;
+  sensors.push_back(std::make_unique<VirtualSensor>(rig, setup_for("127.0.0.1", "122201000001")));
+  sensors.push_back(std::make_unique<VirtualSensor>(rig, setup_for("127.0.0.2", "122201000002")));
+  for (auto& sensor : sensors) sensor->start();
+  auto guard = asio::make_work_guard(io);
+  std::thread io_thread([&io] { io.run(); });
+
+  for (auto& sensor : sensors) {
+    UdpSocket lidar;
+    UdpSocket imu;
+    e2e::SensorHttp http(sensor->http().address(), sensor->http().port());
+    e2e::ConfigRequest request;
+    request.lidar_port = lidar.port();
+    request.imu_port = imu.port();
+    request.lidar_mode = "512x10";
+    const Metadata metadata = e2e::parse(e2e::sdk10_sensor_packet_source(http, request));
+    EXPECT_EQ(metadata.sensor_info.prod_sn, sensor->sensor().identity().prod_sn);
+    e2e::Batcher batcher(metadata);
+    e2e::expect_complete_scans(
+        e2e::receive_scans(lidar, batcher, 2, std::chrono::seconds(15), sensor->http().address()), metadata, 2);
+    const auto datagram = imu.receive(std::chrono::seconds(2));
+    ASSERT_TRUE(datagram);
+    EXPECT_EQ(datagram->source_ip, sensor->http().address());
+  }
+
+  // The rig stops as serve does: streaming on the io thread, then everything else.
+  asio::post(io, [&] {
+    for (auto& sensor : sensors) sensor->stop_streaming();
+  });
+  guard.reset();
+  io_thread.join();
+  for (auto& sensor : sensors) sensor->stop();
+}
+
+}  // namespace
+}  // namespace lidartwin
