@@ -42,19 +42,25 @@ struct ForwardModel::Impl {
     return {out.bytes.data() + index * size, size};
   }
 
-  // Columns [first, last) of frame k: when each was observed, from where, whether at all, and
-  // the timestamp and status the packets carry for it (6.3, 6.4).
-  void stamp_columns(uint64_t frame, int first, int last, EncodedFrame& out) const {
-    out.columns.frame_index = frame;
+  // Columns [first, last) of frame k: from where each was observed, and whether at all (in the
+  // column window, 6.4, with a pose the source stands behind).
+  void locate_columns(uint64_t frame, int first, int last, FrameColumns& columns) const {
+    columns.frame_index = frame;
     const PoseSpan span = poses.span();
     for (int m = first; m < last; ++m) {
       const auto column = static_cast<size_t>(m);
       const double time_s = clock.column_pose_time_s(frame, m);
-      const bool observed = column_in_window(format().column_window, m) && span.contains(time_s);
-      out.columns.observed[column] = observed;
-      if (observed) out.columns.poses[column] = poses.at(time_s);
-      out.scan.timestamp_ns[column] = clock.column_timestamp_ns(frame, m);
-      out.scan.status[column] = observed ? valid_status : 0u;
+      columns.observed[column] = column_in_window(format().column_window, m) && span.contains(time_s);
+      if (columns.observed[column]) columns.poses[column] = poses.at(time_s);
+    }
+  }
+
+  // The timestamp (6.3) and status (4.2, 4.4) the packets carry for columns [first, last).
+  void stamp_columns(uint64_t frame, int first, int last, const std::vector<uint8_t>* observed, Scan& scan) const {
+    for (int m = first; m < last; ++m) {
+      const auto column = static_cast<size_t>(m);
+      scan.timestamp_ns[column] = clock.column_timestamp_ns(frame, m);
+      scan.status[column] = observed && (*observed)[column] ? valid_status : 0u;
     }
   }
 
@@ -64,7 +70,8 @@ struct ForwardModel::Impl {
     const int first = firsts[begin];
     const int last = firsts[end - 1] + cpp;
     assert(last - first == static_cast<int>(end - begin) * cpp);
-    stamp_columns(frame, first, last, out);
+    locate_columns(frame, first, last, out.columns);
+    stamp_columns(frame, first, last, &out.columns.observed, out.scan);
     const PacketHeader header = header_of(frame);
     renderer.render(out.columns, first, last, out.scan, [&](int block_begin, int) {
       const int index = index_of_first[static_cast<size_t>(block_begin / cpp)];
@@ -129,10 +136,7 @@ uint64_t ForwardModel::packet_timestamp_ns(uint64_t frame, size_t index) const {
 std::span<const uint8_t> ForwardModel::blank_packet(uint64_t frame, size_t index, EncodedFrame& scratch) const {
   const Impl& impl = *impl_;
   const int first = impl.firsts[index];
-  for (int m = first; m < first + impl.columns_per_packet(); ++m) {
-    scratch.scan.timestamp_ns[static_cast<size_t>(m)] = impl.clock.column_timestamp_ns(frame, m);
-    scratch.scan.status[static_cast<size_t>(m)] = 0;
-  }
+  impl.stamp_columns(frame, first, first + impl.columns_per_packet(), nullptr, scratch.scan);
   const std::span<uint8_t> out = impl.slot(scratch, index);
   impl.packets.encode(impl.header_of(frame), scratch.scan, first, out);
   return out;

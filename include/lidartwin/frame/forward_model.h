@@ -61,7 +61,8 @@ class ForwardModel {
   // When packet `index` of frame k leaves the sensor: its last column's timestamp (protocol doc 1).
   uint64_t packet_timestamp_ns(uint64_t frame, size_t index) const;
   // Packet `index` of frame k with no observed column but its true timestamps, ids and frame_id:
-  // what the daemon sends when rendering has fallen behind. Encoded into scratch's slot for it.
+  // what the daemon sends when rendering has fallen behind. Encoded into scratch's slot for it;
+  // scratch is a buffer kept for blank packets only (its pixels must stay zero).
   std::span<const uint8_t> blank_packet(uint64_t frame, size_t index, EncodedFrame& scratch) const;
 
   // IMU sample i (100 Hz from the clock's origin), read from the motion at clock.imu_pose_time_s(i)
