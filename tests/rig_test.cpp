@@ -69,7 +69,7 @@ TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
     request.lidar_mode = "512x10";
     const Metadata metadata = e2e::parse(e2e::sdk10_sensor_packet_source(http, request));
     EXPECT_EQ(metadata.sensor_info.prod_sn, sensor->sensor().identity().prod_sn);
-    e2e::Batcher batcher(metadata);
+    ScanBatcher batcher(metadata.format);
     e2e::expect_complete_scans(
         e2e::receive_scans(lidar, batcher, 2, std::chrono::seconds(15), sensor->http().address()), metadata, 2);
     const auto datagram = imu.receive(std::chrono::seconds(2));

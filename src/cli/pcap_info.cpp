@@ -4,6 +4,7 @@
 #include <charconv>
 
 #include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/packet/scan_batcher.h"
 
 namespace lidartwin::cli {
 namespace {
@@ -38,22 +39,18 @@ std::vector<const UdpDatagram*> lidar_datagrams(const std::vector<UdpDatagram>& 
   return selected;
 }
 
-// Non-legacy headers name their sensor; the SDK drops packets of another prod_sn or init_id.
-bool from_this_sensor(const PacketHeader& header, const Metadata& metadata) {
-  if (metadata.format.udp_profile_lidar == UdpProfileLidar::kLegacy) return true;
-  return header.init_id == metadata.sensor_info.initialization_id &&
-         header.prod_sn == serial_number(metadata.sensor_info.prod_sn);
-}
-
 void tally_footer(FooterKind footer, LidarSummary& summary) {
   if (footer == FooterKind::kCrc64) ++summary.crc_ok;
   if (footer == FooterKind::kOther) ++summary.crc_failed;
   if (footer == FooterKind::kFw2Marker || footer == FooterKind::kZero) ++summary.without_crc;
 }
 
-void tally_columns(const Scan& scan, int first_column, int columns, FrameTally& frame) {
+// A frame's valid columns (status bit 0), their pixels and returns; frames repeated in a capture
+// (a frame_id that comes round again) add to the same tally.
+void tally_frame(const BatchedFrame& batched, FrameTally& frame) {
+  const Scan& scan = batched.scan;
   if (frame.valid_columns.empty()) frame.valid_columns.assign(static_cast<size_t>(scan.width), false);
-  for (int m = first_column; m < std::min(first_column + columns, scan.width); ++m) {
+  for (int m = 0; m < scan.width; ++m) {
     if ((scan.status[static_cast<size_t>(m)] & 1u) == 0) continue;
     frame.valid_columns[static_cast<size_t>(m)] = true;
     const auto range = scan.column(ChannelField::kRange, m);
@@ -79,23 +76,24 @@ LidarSummary summarize_lidar(const std::vector<UdpDatagram>& datagrams, const Me
   for (const UdpDatagram& d : datagrams) {
     if (d.dst_port == imu_port && d.payload.size() == format.imu_packet_size()) ++summary.imu_packets;
   }
-  Scan scan(metadata.format);
+  // The SDK drops packets of another prod_sn or init_id (non-legacy headers name their sensor).
+  ScanBatcher batcher(metadata.format,
+                      SensorIds{metadata.sensor_info.initialization_id, serial_number(metadata.sensor_info.prod_sn)});
+  const auto tally = [&summary](const std::optional<BatchedFrame>& frame) {
+    if (frame) tally_frame(*frame, summary.frames[frame->frame_id]);
+  };
   for (const UdpDatagram* d : lidar_datagrams(datagrams, summary)) {
-    std::string error;
-    const auto decoded = format.decode(d->payload, scan, &error);
-    if (!decoded) {
-      if (summary.malformed++ == 0) summary.first_error = error;
-      continue;
-    }
-    if (!from_this_sensor(decoded->header, metadata)) {
-      ++summary.foreign;
-      continue;
-    }
-    ++summary.packets;
-    tally_footer(decoded->footer, summary);
-    tally_columns(scan, decoded->first_measurement_id, metadata.format.columns_per_packet,
-                  summary.frames[decoded->header.frame_id]);
+    const size_t batched = batcher.counts().batched;
+    tally(batcher.add(d->payload));
+    if (batcher.counts().batched > batched) tally_footer(batcher.last_packet()->footer, summary);
   }
+  tally(batcher.flush());
+  const ScanBatcher::Counts& counts = batcher.counts();
+  summary.packets = counts.batched;
+  summary.foreign = counts.foreign;
+  summary.malformed = counts.undecodable;
+  summary.late = counts.late;
+  summary.first_error = batcher.first_error();
   return summary;
 }
 

@@ -29,6 +29,7 @@ struct LidarSummary {
   size_t packets = 0;            // decoded lidar packets of this sensor
   size_t foreign = 0;            // right size, but prod_sn/init_id of another sensor or session
   size_t malformed = 0;
+  size_t late = 0;               // for a frame already assembled (the SDK drops them)
   std::string first_error;
   size_t crc_ok = 0;             // footers with a matching CRC-64
   size_t crc_failed = 0;

@@ -69,6 +69,7 @@ void print_lidar(const Metadata& m, const LidarSummary& s) {
             << (s.port_from_metadata ? "" : ", not the metadata's udp_port_lidar") << ")\n";
   if (s.foreign) std::cout << "other sensor or session (prod_sn/init_id differ): " << s.foreign << " packets, skipped\n";
   if (s.malformed) std::cout << "malformed lidar packets: " << s.malformed << " (first: " << s.first_error << ")\n";
+  if (s.late) std::cout << "late lidar packets (their frame already assembled): " << s.late << ", skipped as the SDK does\n";
   if (m.format.udp_profile_lidar != UdpProfileLidar::kLegacy) {
     std::cout << "crc failures: " << s.crc_failed << " (valid crc: " << s.crc_ok << ", no crc: " << s.without_crc
               << ")\n";

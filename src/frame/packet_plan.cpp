@@ -26,14 +26,4 @@ std::vector<int> packets_to_send(const LidarDataFormat& format) {
   return firsts;
 }
 
-bool uses_fusa_header(const LidarDataFormat& format) {
-  return format.header_type == HeaderType::kFusa ||
-         format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
-}
-
-uint32_t frame_id_of(uint64_t frame_index, const LidarDataFormat& format) {
-  if (uses_fusa_header(format)) return static_cast<uint32_t>(frame_index & 0xFFFF'FFFFu);
-  return static_cast<uint32_t>(frame_index & 0xFFFFu);
-}
-
 }  // namespace lidartwin

@@ -131,4 +131,14 @@ bool column_in_window(const std::array<int, 2>& window, int m) {
   return first <= last ? (m >= first && m <= last) : (m >= first || m <= last);
 }
 
+bool uses_fusa_header(const LidarDataFormat& format) {
+  return format.header_type == HeaderType::kFusa ||
+         format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
+}
+
+uint32_t frame_id_of(uint64_t frame_index, const LidarDataFormat& format) {
+  if (uses_fusa_header(format)) return static_cast<uint32_t>(frame_index & 0xFFFF'FFFFu);
+  return static_cast<uint32_t>(frame_index & 0xFFFFu);
+}
+
 }  // namespace lidartwin

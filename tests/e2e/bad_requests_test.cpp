@@ -67,7 +67,7 @@ TEST(BadRequests, StreamGoesOnAndConfigIsUnchanged) {
   request.lidar_port = lidar.port();
   request.lidar_mode = "512x10";
   const Metadata metadata = parse(sdk016_init_client(http, request));
-  Batcher warmup(metadata);
+  ScanBatcher warmup(metadata.format);
   expect_complete_scans(receive_scans(lidar, warmup, 1, std::chrono::seconds(10)), metadata, 1);
   const json config_before = http.get_json("sensor/config");
 
@@ -110,7 +110,7 @@ TEST(BadRequests, StreamGoesOnAndConfigIsUnchanged) {
   EXPECT_EQ(http.get_json("sensor/metadata/sensor_info").at("initialization_id"),
             metadata.sensor_info.initialization_id);
   lidar.drain();
-  Batcher after(metadata);
+  ScanBatcher after(metadata.format);
   expect_complete_scans(receive_scans(lidar, after, 2, std::chrono::seconds(10)), metadata, 2);
   EXPECT_EQ(daemon.stop(), 0) << daemon.log();
 }

@@ -32,7 +32,7 @@ TEST(RosDriver, ReinitWithANewLidarModeRestartsTheStream) {
   SensorHttp http(daemon.address(), daemon.http_port());
 
   const Metadata before = parse(ros_driver_start(http, "512x10", lidar.port(), imu.port()));
-  Batcher first(before);
+  ScanBatcher first(before.format);
   expect_complete_scans(receive_scans(lidar, first, 3, std::chrono::seconds(15), "127.0.0.1"), before, 3);
 
   // The set_config service: sequence (a) with FORCE_REINIT, then a reset (the whole start-up).
@@ -47,7 +47,7 @@ TEST(RosDriver, ReinitWithANewLidarModeRestartsTheStream) {
   const Metadata after = parse(ros_driver_start(http, "1024x10", lidar.port(), imu.port()));
   EXPECT_NE(after.sensor_info.initialization_id, before.sensor_info.initialization_id);
   EXPECT_EQ(after.format.columns_per_frame, 1024);
-  Batcher second(after);
+  ScanBatcher second(after.format);
   EXPECT_EQ(second.format().lidar_packet_size(), new_size);
   EXPECT_EQ(second.expected_packets(), 64u);
   expect_complete_scans(receive_scans(lidar, second, 3, std::chrono::seconds(15), "127.0.0.1"), after, 3);

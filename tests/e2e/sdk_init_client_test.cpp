@@ -36,11 +36,11 @@ TEST_P(InitClient, StreamsCompleteScansOfTheRequestedFormat) {
   EXPECT_EQ(to_string(LidarMode{metadata.format.columns_per_frame, metadata.format.fps}), mode);
   EXPECT_EQ(to_string(metadata.format.udp_profile_lidar), profile);
 
-  Batcher batcher(metadata);
+  ScanBatcher batcher(metadata.format);
   const auto scans = receive_scans(lidar, batcher, 4, std::chrono::seconds(20), "127.0.0.1");
   expect_complete_scans(scans, metadata, 4);
-  EXPECT_EQ(batcher.wrong_size, 0u);
-  EXPECT_EQ(batcher.undecodable, 0u);
+  EXPECT_EQ(batcher.counts().wrong_size, 0u);
+  EXPECT_EQ(batcher.counts().undecodable, 0u);
   EXPECT_EQ(daemon.stop(), 0) << daemon.log();
 }
 

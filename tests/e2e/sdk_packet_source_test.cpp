@@ -30,7 +30,7 @@ TEST(SensorPacketSource, ReceivesCompleteScansFromTheSensorsAddress) {
   EXPECT_EQ(metadata.config_params.at("udp_port_imu"), imu.port());
   EXPECT_EQ(metadata.config_params.at("udp_dest"), "127.0.0.1");
 
-  Batcher batcher(metadata);
+  ScanBatcher batcher(metadata.format);
   const auto scans = receive_scans(lidar, batcher, 5, std::chrono::seconds(20), "127.0.0.1");
   expect_complete_scans(scans, metadata, 5);
   const auto imu_packet = imu.receive(std::chrono::seconds(2));
@@ -52,7 +52,7 @@ TEST(SensorPacketSource, TimestampsFollowTheTimestampMode) {
     options.lidar_mode = "512x10";
     const Metadata metadata = parse(sdk10_sensor_packet_source(http, options));
     lidar.drain();
-    Batcher batcher(metadata);
+    ScanBatcher batcher(metadata.format);
     const auto scans = receive_scans(lidar, batcher, 2, std::chrono::seconds(10));
     expect_complete_scans(scans, metadata, 2);
     ASSERT_FALSE(scans.empty());

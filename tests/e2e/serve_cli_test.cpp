@@ -65,7 +65,7 @@ TEST(ServeIdentity, SerialNumberFlagIsTheSensorsProdSn) {
   request.lidar_mode = "512x10";
   const Metadata metadata = parse(sdk016_init_client(http, request));
   EXPECT_EQ(metadata.sensor_info.prod_sn, "987654321012");
-  Batcher batcher(metadata);
+  ScanBatcher batcher(metadata.format);
   expect_complete_scans(receive_scans(lidar, batcher, 1, std::chrono::seconds(10)), metadata, 1);
 }
 
@@ -83,7 +83,7 @@ TEST(ServeRecord, CapturesEverySentPacketWithMetadata) {
   request.imu_port = imu.port();
   request.lidar_mode = "512x10";
   const Metadata metadata = parse(sdk016_init_client(http, request));
-  Batcher batcher(metadata);
+  ScanBatcher batcher(metadata.format);
   expect_complete_scans(receive_scans(lidar, batcher, 2, std::chrono::seconds(10)), metadata, 2);
   ASSERT_EQ(daemon.stop(), 0) << daemon.log();
 

@@ -34,7 +34,7 @@ void connect(Daemon& daemon, Client& client) {
 }
 
 void expect_own_packets(Daemon& daemon, Client& client) {
-  Batcher batcher(client.metadata);
+  ScanBatcher batcher(client.metadata.format);
   expect_complete_scans(receive_scans(client.lidar, batcher, 3, std::chrono::seconds(15), daemon.address()),
                         client.metadata, 3);
   for (int i = 0; i < 5; ++i) {

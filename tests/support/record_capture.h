@@ -21,6 +21,7 @@
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/packet/scan_batcher.h"
 #include "lidartwin/pcap/pcap.h"
 
 namespace lidartwin::test {
@@ -91,8 +92,10 @@ struct DecodedCapture {
 inline DecodedCapture decode_capture(const std::filesystem::path& dir) {
   DecodedCapture capture;
   capture.metadata = load_metadata(dir / "metadata.json");
-  const PacketFormat format(capture.metadata.format);
-  Scan probe(capture.metadata.format);  // first pass: which frame the packet belongs to
+  ScanBatcher batcher(capture.metadata.format);
+  const auto keep = [&capture](std::optional<BatchedFrame> frame) {
+    if (frame) capture.frames.emplace(frame->frame_id, std::move(frame->scan));
+  };
   for (const UdpDatagram& datagram : read_pcap(dir / "capture.pcap")) {
     if (datagram.dst_port == 7503) {
       ++capture.imu_packets;
@@ -100,11 +103,13 @@ inline DecodedCapture decode_capture(const std::filesystem::path& dir) {
     }
     if (datagram.dst_port != 7502) continue;
     ++capture.lidar_packets;
-    std::string error;
-    const auto decoded = format.decode(datagram.payload, probe, &error);
-    if (!decoded) throw std::runtime_error("undecodable packet: " + error);
-    auto [it, fresh] = capture.frames.try_emplace(decoded->header.frame_id, capture.metadata.format);
-    format.decode(datagram.payload, it->second, &error);
+    keep(batcher.add(datagram.payload));
+  }
+  keep(batcher.flush());
+  const auto& counts = batcher.counts();
+  if (counts.batched != capture.lidar_packets) {
+    throw std::runtime_error(std::to_string(capture.lidar_packets - counts.batched) + " lidar packets not batched (" +
+                             batcher.first_error() + ")");
   }
   return capture;
 }

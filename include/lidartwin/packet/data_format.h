@@ -80,4 +80,9 @@ std::array<int, 2> column_window_from_azimuth_window(int start_mdeg, int end_mde
 // Whether measurement id m lies inside the (possibly wrapping) window.
 bool column_in_window(const std::array<int, 2>& window, int m);
 
+// Whether packets carry the FUSA header (4.3): its frame_id has 32 bits, the others 16.
+bool uses_fusa_header(const LidarDataFormat& format);
+// The frame_id of the n-th frame of a stream: +1 per revolution, wrapping at 2^16 or 2^32.
+uint32_t frame_id_of(uint64_t frame_index, const LidarDataFormat& format);
+
 }  // namespace lidartwin

@@ -1,6 +1,6 @@
 #pragma once
-// Scan assembly exactly as the SDK-0.16 ScanBatcher does it (protocol doc 6.5), over the packets a
-// client receives, plus the checks the e2e tests make on every assembled scan.
+// Scans as an SDK client assembles them (the library's ScanBatcher, protocol doc 6.5) from the
+// packets it receives, and the checks the e2e tests make on every assembled scan.
 #include <chrono>
 #include <optional>
 #include <set>
@@ -14,80 +14,15 @@
 #include "e2e/support/udp_socket.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/lidar_packet.h"
-#include "lidartwin/frame/packet_plan.h"
+#include "lidartwin/packet/scan_batcher.h"
 
 namespace lidartwin::e2e {
 
-struct AssembledScan {
-  Scan scan;
-  uint32_t frame_id = 0;
-  size_t packets = 0;
-  bool complete = false;  // released because every expected packet arrived
-  std::set<uint32_t> init_ids;
-  std::set<uint64_t> prod_sns;
-};
-
-class Batcher {
- public:
-  explicit Batcher(const Metadata& metadata)
-      : format_(metadata.format), expected_(static_cast<size_t>(format_.packets_per_frame())) {}
-
-  const PacketFormat& format() const { return format_; }
-  size_t expected_packets() const { return expected_; }
-  size_t wrong_size = 0;     // dropped like read_lidar_packet does (1 item 9)
-  size_t undecodable = 0;
-
-  // One lidar datagram; returns the scan it finished, if any.
-  std::optional<AssembledScan> add(std::span<const uint8_t> bytes) {
-    if (bytes.size() != format_.lidar_packet_size()) {
-      ++wrong_size;
-      return std::nullopt;
-    }
-    Scan probe(format_.format());
-    std::string error;
-    const auto decoded = format_.decode(bytes, probe, &error);
-    if (!decoded) {
-      ++undecodable;
-      return std::nullopt;
-    }
-    const uint32_t frame_id = decoded->header.frame_id;
-    if (finished_ && (frame_id == *finished_ || frame_id + 1 == *finished_)) return std::nullopt;  // late
-    std::optional<AssembledScan> released;
-    if (open_ && open_->frame_id != frame_id) released = release();
-    if (!open_) start(frame_id);
-    format_.decode(bytes, open_->scan, &error);
-    ++open_->packets;
-    open_->init_ids.insert(decoded->header.init_id);
-    open_->prod_sns.insert(decoded->header.prod_sn);
-    if (open_->packets >= expected_) {
-      open_->complete = true;
-      return release();
-    }
-    return released;
-  }
-
- private:
-  void start(uint32_t frame_id) {
-    open_ = AssembledScan{Scan(format_.format()), frame_id, 0, false, {}, {}};
-  }
-  std::optional<AssembledScan> release() {
-    finished_ = open_->frame_id;
-    auto scan = std::move(open_);
-    open_.reset();
-    return scan;
-  }
-
-  PacketFormat format_;
-  size_t expected_;
-  std::optional<AssembledScan> open_;
-  std::optional<uint32_t> finished_;
-};
-
 // Receives until `count` scans were released (the first, possibly partial one, is skipped) or the
 // timeout passes. Checks the source address of every datagram when `source` is given.
-inline std::vector<AssembledScan> receive_scans(UdpSocket& socket, Batcher& batcher, size_t count,
+inline std::vector<BatchedFrame> receive_scans(UdpSocket& socket, ScanBatcher& batcher, size_t count,
                                                 std::chrono::seconds timeout, const std::string& source = "") {
-  std::vector<AssembledScan> scans;
+  std::vector<BatchedFrame> scans;
   bool first = true;
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (scans.size() < count && std::chrono::steady_clock::now() < deadline) {
@@ -115,7 +50,7 @@ inline int window_columns(const LidarDataFormat& format) {
 
 // Every scan complete, every window column valid, frame_ids consecutive, ids equal to the
 // metadata's (1 items 10-11), timestamps non-zero and rising (6.3).
-inline void expect_complete_scans(const std::vector<AssembledScan>& scans, const Metadata& metadata, size_t count) {
+inline void expect_complete_scans(const std::vector<BatchedFrame>& scans, const Metadata& metadata, size_t count) {
   ASSERT_EQ(scans.size(), count) << "scans received";
   const auto& format = metadata.format;
   const uint64_t prod_sn = std::stoull(metadata.sensor_info.prod_sn);
