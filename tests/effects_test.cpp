@@ -595,8 +595,8 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
   effects[2]["sigma0_m"] = 0.01;
   effects[2]["sigma_m"] = 0.01;
   EXPECT_EQ(error_of(effects),
-            "profiles/os1-64.json: /effects/2/sigma_m: unknown parameter of range_noise_linear; "
-            "allowed: sigma0_m, sigma_max_m, range_max_m");
+            "profiles/os1-64.json: /effects/2/sigma_m: unknown key of range_noise_linear; "
+            "allowed keys here: name, sigma0_m, sigma_max_m, range_max_m");
 
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "

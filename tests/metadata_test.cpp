@@ -206,7 +206,7 @@ std::string error_of(const nlohmann::json& document, const std::string& source =
 TEST(MetadataErrors, NamesFilePathAndExpectedCount) {
   nlohmann::json doc = read_json(kDocExample);
   doc["beam_intrinsics"]["beam_altitude_angles"].erase(63);
-  EXPECT_EQ(error_of(doc), "OS-1-64.json: /beam_intrinsics/beam_altitude_angles: expected 64 numbers, got 63");
+  EXPECT_EQ(error_of(doc), "OS-1-64.json: /beam_intrinsics/beam_altitude_angles: must be 64 numbers, got an array of 63");
 }
 
 TEST(MetadataErrors, NamesEachMissingSectionOfAPartialSet) {
@@ -223,10 +223,10 @@ TEST(MetadataErrors, NamesEachMissingSectionOfAPartialSet) {
 TEST(MetadataErrors, LegacyErrorsNameTheTopLevelKey) {
   nlohmann::json doc = read_json(kSamples / "OS-0-32-U1_v2.2.0_1024x10.json");
   doc["beam_azimuth_angles"][3] = "x";
-  EXPECT_EQ(error_of(doc, "flat.json"), "flat.json: /beam_azimuth_angles/3: expected a number, got string \"x\"");
+  EXPECT_EQ(error_of(doc, "flat.json"), "flat.json: /beam_azimuth_angles/3: must be a number, got a string \"x\"");
   doc = read_json(kSamples / "OS-0-32-U1_v2.2.0_1024x10.json");
   doc["data_format"]["column_window"] = {0, 1024};
-  EXPECT_NE(error_of(doc).find("/data_format/column_window/1: expected an integer in [0, 1023]"), std::string::npos)
+  EXPECT_NE(error_of(doc).find("/data_format/column_window/1: must be an integer in [0, 1023]"), std::string::npos)
       << error_of(doc);
 }
 
@@ -238,22 +238,22 @@ struct BadValue {
 
 TEST(MetadataErrors, RejectsMistypedAndOutOfRangeValues) {
   const BadValue cases[] = {
-      {"/sensor_info/prod_sn", 122201000123, "/sensor_info/prod_sn: expected a string"},
-      {"/sensor_info/prod_sn", "12-34", "/sensor_info/prod_sn: expected a string of decimal digits"},
-      {"/sensor_info/initialization_id", "7", "/sensor_info/initialization_id: expected an integer"},
-      {"/sensor_info/initialization_id", 1 << 24, "/sensor_info/initialization_id: expected an integer in [0, 16777215]"},
-      {"/config_params/lidar_mode", "1000x10", "/config_params/lidar_mode: expected one of 512x10"},
-      {"/config_params/udp_port_lidar", 70000, "/config_params/udp_port_lidar: expected an integer in [0, 65535]"},
-      {"/config_params/azimuth_window", {0}, "/config_params/azimuth_window: expected [start, end]"},
-      {"/lidar_data_format/udp_profile_lidar", "RNG99", "expected one of LEGACY, RNG19_RFL8_SIG16_NIR16"},
-      {"/lidar_data_format/udp_profile_imu", 3, "/lidar_data_format/udp_profile_imu: expected a string"},
-      {"/lidar_data_format/header_type", "FANCY", "expected STANDARD or FUSA"},
-      {"/lidar_data_format/pixels_per_column", 0, "expected an integer in [1, 128]"},
-      {"/lidar_data_format/pixel_shift_by_row", "none", "expected an array of integers"},
-      {"/beam_intrinsics/beam_to_lidar_transform", {1, 0}, "beam_to_lidar_transform: expected 16 numbers, got 2"},
-      {"/beam_intrinsics/lidar_origin_to_beam_origin_mm", nullptr, "expected a number, got null"},
+      {"/sensor_info/prod_sn", 122201000123, "/sensor_info/prod_sn: must be a string"},
+      {"/sensor_info/prod_sn", "12-34", "/sensor_info/prod_sn: must be a string of decimal digits"},
+      {"/sensor_info/initialization_id", "7", "/sensor_info/initialization_id: must be an integer"},
+      {"/sensor_info/initialization_id", 1 << 24, "/sensor_info/initialization_id: must be an integer in [0, 16777215]"},
+      {"/config_params/lidar_mode", "1000x10", "/config_params/lidar_mode: must be one of 512x10"},
+      {"/config_params/udp_port_lidar", 70000, "/config_params/udp_port_lidar: must be an integer in [0, 65535]"},
+      {"/config_params/azimuth_window", {0}, "/config_params/azimuth_window: must be [start, end]"},
+      {"/lidar_data_format/udp_profile_lidar", "RNG99", "must be one of LEGACY, RNG19_RFL8_SIG16_NIR16"},
+      {"/lidar_data_format/udp_profile_imu", 3, "/lidar_data_format/udp_profile_imu: must be a string"},
+      {"/lidar_data_format/header_type", "FANCY", "must be STANDARD or FUSA"},
+      {"/lidar_data_format/pixels_per_column", 0, "must be an integer in [1, 128]"},
+      {"/lidar_data_format/pixel_shift_by_row", "none", "must be an array of integers"},
+      {"/beam_intrinsics/beam_to_lidar_transform", {1, 0}, "beam_to_lidar_transform: must be 16 numbers, got an array of 2"},
+      {"/beam_intrinsics/lidar_origin_to_beam_origin_mm", nullptr, "must be a number, got null"},
       {"/lidar_intrinsics", "text", nullptr},  // a string section is FW 1.12's error reply: allowed
-      {"/imu_intrinsics", 5, "/imu_intrinsics: expected an object"},
+      {"/imu_intrinsics", 5, "/imu_intrinsics: must be an object"},
   };
   for (const BadValue& c : cases) {
     nlohmann::json doc = read_json(kDocExample);
@@ -277,7 +277,7 @@ TEST(MetadataErrors, NeedsALidarModeOrColumnsPerFrame) {
 }
 
 TEST(MetadataErrors, RejectsAnythingButAnObject) {
-  EXPECT_EQ(error_of(nlohmann::json::array(), "x.json"), "x.json: /: expected a JSON object, got an array of 0");
+  EXPECT_EQ(error_of(nlohmann::json::array(), "x.json"), "x.json: /: must be a JSON object, got an array of 0");
 }
 
 TEST(MetadataErrors, LoadNamesAMissingOrBrokenFile) {
@@ -341,7 +341,7 @@ TEST(MakeMetadata, NamesTheBadConfigKey) {
     make_metadata(base.sensor_info, base.beams, {{"lidar_mode", "640x10"}});
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("config_params: /lidar_mode: expected one of", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind("config_params: /lidar_mode: must be one of", 0), 0u) << e.what();
   }
   EXPECT_THROW(make_metadata(base.sensor_info, base.beams, {{"azimuth_window", {0, 400000}}}), InputError);
   EXPECT_THROW(make_metadata(base.sensor_info, base.beams, {{"columns_per_packet", "16"}}), InputError);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/error.h"
+#include "lidartwin/profile/product_line.h"
 #include "lidartwin/profile/sensor_profile.h"
 
 namespace lidartwin {
@@ -230,10 +231,10 @@ TEST_F(BadProfile, MissingKey) {
 
 TEST_F(BadProfile, WrongType) {
   good_["beam_divergence_rad"] = "0.002";
-  EXPECT_EQ(error_for(good_), path() + ": /beam_divergence_rad: must be a number in (0, 0.1], got a string");
+  EXPECT_EQ(error_for(good_), path() + ": /beam_divergence_rad: must be a number in (0, 0.1], got a string \"0.002\"");
   good_ = read_json(profiles_dir() / "os1-64.json");
   good_["prod_line"] = 64;
-  EXPECT_EQ(error_for(good_), path() + ": /prod_line: must be a string, got a number");
+  EXPECT_EQ(error_for(good_), path() + ": /prod_line: must be a string, got a number 64");
 }
 
 TEST_F(BadProfile, ArraysOfDifferentLengths) {
@@ -297,6 +298,27 @@ TEST_F(BadProfile, EnvironmentOverridesTheProfilesDirectory) {
   EXPECT_EQ(load_profile("mine").prod_line, "OS-1-64");
   ::unsetenv("LIDARTWIN_PROFILES");
   EXPECT_EQ(profiles_dir(), fs::path(LIDARTWIN_SOURCE_DIR) / "profiles");
+}
+
+}  // namespace
+}  // namespace lidartwin
+
+namespace lidartwin {
+namespace {
+
+// The product-line rules profiles and metadata share (protocol doc 3.1).
+TEST(ProductLine, BeamsFamilyAndShape) {
+  EXPECT_EQ(beam_count_of("OS-1-64"), 64);
+  EXPECT_EQ(beam_count_of("OS-0-32-U1"), 32);
+  EXPECT_EQ(beam_count_of("OS-DOME-128"), 128);
+  EXPECT_EQ(beam_count_of("OS1"), std::nullopt);
+  EXPECT_DOUBLE_EQ(default_lidar_origin_to_beam_origin_mm("OS-0-128"), 27.67);
+  EXPECT_DOUBLE_EQ(default_lidar_origin_to_beam_origin_mm("OS-2-32-U0"), 13.762);
+  EXPECT_DOUBLE_EQ(default_lidar_origin_to_beam_origin_mm("OS-01-64"), 12.163);  // not the OS-0 family
+  EXPECT_TRUE(is_current_product_line("OS-0-32-U1"));
+  EXPECT_FALSE(is_current_product_line("OS-3-64"));
+  EXPECT_FALSE(is_current_product_line("OS-1-64-"));
+  EXPECT_FALSE(is_current_product_line("OS-1-12345"));
 }
 
 }  // namespace

@@ -1,59 +1,29 @@
 // Effect parameter reading and checking; see parameters.h.
 #include "effects/parameters.h"
 
-#include <algorithm>
-#include <cmath>
-#include <cstdio>
+#include <vector>
 
-#include "lidartwin/error.h"
+#include "lidartwin/json/json_reader.h"
 
 namespace lidartwin::effects_detail {
-namespace {
-
-// A JSON pointer token escapes '~' and '/' (RFC 6901), so an unknown key prints unambiguously.
-std::string escape_token(std::string_view token) {
-  std::string out;
-  for (const char c : token) {
-    switch (c) {
-      case '~':
-        out += "~0";
-        break;
-      case '/':
-        out += "~1";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
-std::string type_name(const nlohmann::json& value) {
-  if (value.is_number()) return "a number";
-  if (value.is_boolean()) return "a boolean";
-  return std::string(value.is_array() || value.is_object() ? "an " : "a ") + value.type_name();
-}
-
-}  // namespace
 
 std::string json_path(std::string_view source, std::string_view token) {
   const bool has_pointer = source.find(": /") != std::string_view::npos;
-  return std::string(source) + (has_pointer ? "/" : ": /") + escape_token(token);
+  return std::string(source) + (has_pointer ? "/" : ": /") + json_reader::escape_token(token);
 }
 
-void fail(std::string_view where, std::string_view what) {
-  throw InputError(std::string(where) + ": " + std::string(what));
+// "file: /effects/2" -> {"file", "/effects/2"}; a source without a pointer is the whole document.
+json_reader::Location location_of(std::string_view where) {
+  const size_t split = where.find(": /");
+  if (split == std::string_view::npos) return {std::string(where), ""};
+  return {std::string(where.substr(0, split)), std::string(where.substr(split + 2))};
 }
 
-std::string format_number(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.10g", value);
-  return buffer;
-}
+void fail(std::string_view where, std::string_view what) { location_of(where).fail(what); }
 
-std::string format_range(double lower, double upper) {
-  return "[" + format_number(lower) + ", " + format_number(upper) + "]";
-}
+std::string format_number(double value) { return json_reader::format_number(value); }
+
+std::string format_range(double lower, double upper) { return json_reader::Range{lower, upper}.to_string(); }
 
 void check_number(double value, std::string_view where, Bounds bounds) {
   if (!(value >= bounds.lower && value <= bounds.upper)) {  // also rejects NaN
@@ -62,10 +32,8 @@ void check_number(double value, std::string_view where, Bounds bounds) {
 }
 
 double read_number(const nlohmann::json& value, std::string_view where, Bounds bounds) {
-  if (!value.is_number()) {
-    fail(where, "must be a number in " + format_range(bounds.lower, bounds.upper) + ", got " + type_name(value) + " " +
-                    value.dump());
-  }
+  // Bounds may be infinite (an unbounded parameter), which json_reader::Range does not take.
+  if (!value.is_number()) location_of(where).fail_expected("a number in " + format_range(bounds.lower, bounds.upper), value);
   const double number = value.get<double>();
   check_number(number, where, bounds);
   return number;
@@ -73,14 +41,9 @@ double read_number(const nlohmann::json& value, std::string_view where, Bounds b
 
 void check_keys(const nlohmann::json& params, std::string_view source, std::string_view effect,
                 std::span<const std::string_view> allowed) {
-  if (!params.is_object()) fail(source, "must be an object, got " + type_name(params));
-  for (const auto& [key, unused] : params.items()) {
-    if (key == "name" || std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
-    std::string list;
-    for (const auto name : allowed) list += (list.empty() ? "" : ", ") + std::string(name);
-    fail(json_path(source, key),
-         "unknown parameter of " + std::string(effect) + (allowed.empty() ? "; it takes none" : "; allowed: " + list));
-  }
+  std::vector<std::string_view> keys{"name"};
+  keys.insert(keys.end(), allowed.begin(), allowed.end());
+  json_reader::ObjectReader(params, location_of(source), keys, json_reader::UnknownKeys::kReject, effect);
 }
 
 void check_count(size_t got, size_t expected, std::string_view effect) {

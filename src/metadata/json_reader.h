@@ -1,7 +1,8 @@
 #pragma once
-// Typed, bounds-checked access to a metadata document. Every failure is an InputError of the form
-// "<source>: <JSON pointer>: expected <what>, got <what was there>" (STYLE.md "Errors at the
-// boundary"); nothing here indexes a JSON value without checking its type first.
+// Typed, bounds-checked access to a metadata document, in the project's one JSON vocabulary
+// (lidartwin/json/json_reader.h): every failure is an InputError "<source>: <JSON pointer>: must be
+// <what>, got <what was there>"; nothing here indexes a JSON value without checking its type first.
+// Metadata keeps unknown keys on purpose: newer firmware adds them, and clients ignore them.
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -11,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lidartwin/json/json_reader.h"
 #include "lidartwin/profile/beam_intrinsics.h"
 
 namespace lidartwin::metadata_detail {
@@ -27,6 +29,8 @@ class JsonReader {
  public:
   explicit JsonReader(std::string_view source) : source_(source) {}
 
+  json_reader::Location at(const std::string& path) const { return {source_, path}; }
+  // "must be <expected>, got <got>"
   [[noreturn]] void fail(const std::string& path, const std::string& expected, const std::string& got) const;
   [[noreturn]] void fail(const std::string& path, const std::string& message) const;
 
@@ -45,7 +49,6 @@ class JsonReader {
   std::string source_;
 };
 
-// A short description of a value for "got ..." in messages: its type and (abridged) text.
-std::string describe(const nlohmann::json& value);
+using json_reader::describe;
 
 }  // namespace lidartwin::metadata_detail

@@ -5,15 +5,12 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/metadata/metadata.h"
+#include "lidartwin/profile/product_line.h"
 #include "metadata/json_reader.h"
 #include "metadata/sectioned_document.h"
 
 namespace lidartwin::metadata_detail {
 
-// The beam count a product line names ("OS-1-64" -> 64, "OS-0-32-U1" -> 32), if it names one.
-std::optional<int> beam_count_of(const std::string& prod_line);
-// Protocol doc 3.1 defaults by product line: OS-0 27.67, OS-1 15.806, OS-2 13.762, other 12.163 mm.
-double default_lidar_origin_to_beam_origin_mm(const std::string& prod_line);
 
 SensorInfo parse_sensor_info(const SectionedDocument& document, const JsonReader& reader);
 nlohmann::json sensor_info_to_json(const SensorInfo& info);

@@ -5,19 +5,20 @@
 #include <cmath>
 #include <filesystem>
 
+#include "lidartwin/json/json_reader.h"
+#include "lidartwin/profile/product_line.h"
 #include "lidartwin/profile/sensor_profile.h"
-#include "profile/json_fields.h"
 
 namespace lidartwin {
 namespace {
 
 using nlohmann::json;
-using profile_detail::Location;
-using profile_detail::ObjectReader;
-using profile_detail::Range;
-using profile_detail::read_number;
-using profile_detail::read_numbers;
-using profile_detail::read_string;
+using json_reader::Location;
+using json_reader::ObjectReader;
+using json_reader::Range;
+using json_reader::read_number;
+using json_reader::read_numbers;
+using json_reader::read_string;
 
 const Range kAltitudeDeg{-90.0, 90.0};
 const Range kAzimuthDeg{-180.0, 180.0};
@@ -29,14 +30,6 @@ const Range kMatrixEntry{-1e6, 1e6};
 
 // What the SDK accepts as lidar_mode (metadata.cpp; W ∈ {512, 1024, 2048, 4096}).
 const std::vector<std::string> kLidarModes{"512x10", "512x20", "1024x10", "1024x20", "2048x10", "4096x5"};
-
-// SDK default of lidar_origin_to_beam_origin_mm by product line (protocol doc 3.1).
-double default_origin_mm(std::string_view prod_line) {
-  if (prod_line.starts_with("OS-0")) return 27.67;
-  if (prod_line.starts_with("OS-1")) return 15.806;
-  if (prod_line.starts_with("OS-2")) return 13.762;
-  return 12.163;
-}
 
 // 16 numbers, row-major, an affine transform whose rotation part is orthonormal (det +1).
 Mat4 read_transform(const json& value, const Location& at) {
@@ -77,7 +70,7 @@ BeamIntrinsics read_beams(const json& value, const Location& at, std::string_vie
   const json* origin = reader.find("lidar_origin_to_beam_origin_mm");
   beams.lidar_origin_to_beam_origin_mm =
       origin ? read_number(*origin, at.child("lidar_origin_to_beam_origin_mm"), kOffsetMm)
-             : default_origin_mm(prod_line);
+             : default_lidar_origin_to_beam_origin_mm(prod_line);
   beams.beam_to_lidar = kIdentity4;
   beams.beam_to_lidar[3] = beams.lidar_origin_to_beam_origin_mm;  // SDK default (protocol doc 3.1)
   if (const json* b = reader.find("beam_to_lidar_transform")) {
@@ -112,7 +105,7 @@ std::vector<std::string> read_modes(const json& value, const Location& at) {
 
 // The effects module validates each effect's parameters; here only the shape of the list.
 json read_effects(const json& value, const Location& at) {
-  if (!value.is_array()) at.fail("must be an array of effect objects, got " + profile_detail::type_name(value));
+  if (!value.is_array()) at.fail("must be an array of effect objects, got " + json_reader::describe(value));
   for (size_t i = 0; i < value.size(); ++i) {
     const json& effect = value[i];
     if (!effect.is_object() || !effect.contains("name") || !effect.at("name").is_string()) {
@@ -123,28 +116,19 @@ json read_effects(const json& value, const Location& at) {
 }
 
 // prod_line "OS-<0|1|2>-<beams>[-<variant>]", e.g. "OS-0-32-U1"; the SDK takes the third field as
-// the beam count (protocol doc 3.1). Parsed by hand: std::regex trips GCC 12's sanitizer build.
+// the beam count (protocol doc 3.1).
 void check_prod_line(const std::string& prod_line, size_t rows, const Location& at) {
-  const auto is_digit = [](char c) { return c >= '0' && c <= '9'; };
-  const auto is_word = [&](char c) {
-    return is_digit(c) || c == '_' || (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z');
-  };
-  size_t end = 5;
-  while (end < prod_line.size() && is_digit(prod_line[end])) ++end;
-  const bool family_ok = prod_line.size() > 5 && prod_line.starts_with("OS-") && prod_line[3] >= '0' &&
-                         prod_line[3] <= '2' && prod_line[4] == '-' && end > 5 && end - 5 <= 4;
-  const std::string variant = end < prod_line.size() ? prod_line.substr(end) : "";
-  const bool variant_ok = variant.empty() || (variant.size() > 1 && variant[0] == '-' &&
-                                              std::all_of(variant.begin() + 1, variant.end(), is_word));
-  if (!family_ok || !variant_ok) at.fail("must look like \"OS-1-64\" or \"OS-0-32-U1\", got \"" + prod_line + "\"");
-  const std::string beams = prod_line.substr(5, end - 5);
-  if (std::stoul(beams) != rows) at.fail("names " + beams + " beams but beam_intrinsics has " + std::to_string(rows));
+  if (!is_current_product_line(prod_line)) at.fail("must look like \"OS-1-64\" or \"OS-0-32-U1\", got \"" + prod_line + "\"");
+  const int beams = *beam_count_of(prod_line);
+  if (static_cast<size_t>(beams) != rows) {
+    at.fail("names " + std::to_string(beams) + " beams but beam_intrinsics has " + std::to_string(rows));
+  }
 }
 
 }  // namespace
 
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source) {
-  const Location root{source, ""};
+  const Location root{std::string(source), ""};
   const ObjectReader top(document, root,
                          {"prod_line", "prod_pn", "source", "min_range_m", "max_range_m", "beam_divergence_rad",
                           "lidar_modes", "beam_intrinsics", "effects"});

@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "lidartwin/error.h"
+#include "lidartwin/json/json_reader.h"
 #include "lidartwin/packet/data_format.h"
 #include "sensor/ipv4.h"
 
@@ -19,10 +20,7 @@ using nlohmann::json;
 // A problem with the value (what was expected), or nullopt when it is fine.
 using Check = std::function<std::optional<std::string>(const json&)>;
 
-std::string shown(const json& value) {
-  std::string text = value.dump();
-  return text.size() <= 80 ? text : text.substr(0, 77) + "...";
-}
+std::string shown(const json& value) { return json_reader::describe(value); }
 
 std::string quoted_list(const std::vector<std::string>& names) {
   std::string list;

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "lidartwin/error.h"
+#include "lidartwin/json/json_reader.h"
 #include "sensor/activation.h"
 #include "sensor/state_file.h"
 
@@ -38,8 +39,7 @@ json merged(json config, const json& partial) {
 
 json checked_object(const json& partial, const std::string& source) {
   if (!partial.is_object()) {
-    throw InputError(source + ": must be a JSON object of config keys, got " +
-                     std::string(partial.type_name()));
+    json_reader::Location{source, ""}.fail_expected("a JSON object of config keys", partial);
   }
   return partial;
 }
