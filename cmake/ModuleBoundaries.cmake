@@ -35,6 +35,7 @@ lidartwin_third_party(pcap TARGETS PkgConfig::PCAP HEADERS pcap.h pcap/pcap.h IM
 lidartwin_third_party(embree TARGETS embree HEADERS embree3/rtcore.h)
 lidartwin_third_party(tinygltf TARGETS lidartwin_tinygltf HEADERS tiny_gltf.h)
 lidartwin_third_party(nlopt TARGETS NLopt::nlopt HEADERS nlopt.h nlopt.hpp)
+lidartwin_third_party(lzma TARGETS LibLZMA::LibLZMA HEADERS lzma.h)
 lidartwin_third_party(nlohmann_json TARGETS nlohmann_json::nlohmann_json HEADERS nlohmann/json.hpp
                       nlohmann/json_fwd.hpp)
 lidartwin_third_party(fmt TARGETS fmt::fmt HEADERS fmt/core.h fmt/format.h fmt/ranges.h fmt/chrono.h fmt/ostream.h)
