@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include <fmt/ranges.h>
+
 #include "lidartwin/error.h"
 
 namespace lidartwin::effects_detail {
@@ -76,10 +78,9 @@ void check_keys(const nlohmann::json& params, std::string_view source, std::stri
   if (!params.is_object()) fail(source, "must be an object, got " + type_name(params));
   for (const auto& [key, unused] : params.items()) {
     if (key == "name" || std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
-    std::string list;
-    for (const auto name : allowed) list += (list.empty() ? "" : ", ") + std::string(name);
-    fail(json_path(source, key),
-         "unknown parameter of " + std::string(effect) + (allowed.empty() ? "; it takes none" : "; allowed: " + list));
+    const std::string choices =
+        allowed.empty() ? "it takes none" : fmt::format("allowed: {}", fmt::join(allowed, ", "));
+    fail(json_path(source, key), "unknown parameter of " + std::string(effect) + "; " + choices);
   }
 }
 

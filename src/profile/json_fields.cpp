@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include <fmt/ranges.h>
+
 #include "lidartwin/error.h"
 
 namespace lidartwin::profile_detail {
@@ -14,12 +16,6 @@ std::string format_number(double value) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%.10g", value);
   return buffer;
-}
-
-std::string join(const std::vector<std::string_view>& names) {
-  std::string out;
-  for (const auto name : names) out += (out.empty() ? "" : ", ") + std::string(name);
-  return out;
 }
 
 }  // namespace
@@ -74,7 +70,7 @@ ObjectReader::ObjectReader(const nlohmann::json& value, Location at, std::vector
   if (!value.is_object()) at_.fail("must be an object, got " + type_name(value));
   for (const auto& [key, unused] : value.items()) {
     if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-      at_.child(key).fail("unknown key; allowed keys here: " + join(allowed));
+      at_.child(key).fail(fmt::format("unknown key; allowed keys here: {}", fmt::join(allowed, ", ")));
     }
   }
 }
