@@ -19,3 +19,5 @@ find_path(ASIO_INCLUDE_DIR asio.hpp REQUIRED)
 add_library(lidartwin_asio INTERFACE)
 target_include_directories(lidartwin_asio SYSTEM INTERFACE ${ASIO_INCLUDE_DIR})
 target_compile_definitions(lidartwin_asio INTERFACE ASIO_STANDALONE ASIO_NO_DEPRECATED)
+find_package(fmt REQUIRED)  # also spdlog's formatter
+find_package(LibLZMA REQUIRED)  # lzma_crc64: the packets' CRC-64/XZ

@@ -1,4 +1,4 @@
-# The instruction set of the per-pixel modules (packet, caster, effects, render). Their loops are
+# The instruction set of the per-pixel modules (packet, caster, effects, frame). Their loops are
 # written to vectorize; with AVX2 and FMA (x86-64-v3) they process twice the lanes of baseline
 # x86-64, which pipeline_bench measures as part of the pipeline's speed against raw Embree
 # (Embree itself picks AVX2/AVX-512 at run time). The rest of the program stays baseline, and the

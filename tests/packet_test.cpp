@@ -197,23 +197,19 @@ TEST(Crc64, CheckValueAndBitwiseReference) {
   }
 }
 
-// The carry-less-multiply path (64 bytes and more) against the table path, at every length
-// around its block boundaries and at packet sizes; a flipped bit anywhere must change both alike.
-TEST(Crc64, FoldingAgreesWithTablesAtEveryLength) {
+// At packet sizes (short, OS-32 and OS-128 packets), where a fast CRC folds blocks; a flipped bit
+// anywhere must change it.
+TEST(Crc64, PacketSizesMatchBitwiseReference) {
   std::mt19937_64 rng(11);  // fixed seed: reproducible data, any values do
   std::vector<uint8_t> data(25000);
   for (auto& b : data) b = static_cast<uint8_t>(rng());
-  for (size_t length = 0; length <= 600; ++length) {
-    const std::span<const uint8_t> bytes(data.data() + length % 5, length);
-    ASSERT_EQ(crc64_xz(bytes), crc64_xz_tables(bytes)) << "length " << length;
-  }
   for (const size_t length : {3328u, 8448u, 24832u, 24999u}) {
     std::span<uint8_t> bytes(data.data(), length);
     const uint64_t before = crc64_xz(bytes);
     EXPECT_EQ(before, test::crc64_bitwise(bytes)) << "length " << length;
     bytes[length / 3] ^= 0x10;
     EXPECT_NE(crc64_xz(bytes), before) << "length " << length;
-    EXPECT_EQ(crc64_xz(bytes), crc64_xz_tables(bytes)) << "length " << length;
+    EXPECT_EQ(crc64_xz(bytes), test::crc64_bitwise(bytes)) << "length " << length;
   }
 }
 

@@ -32,6 +32,7 @@ struct SampleCounts {
   const char* file;
   PortSizeCounts expected;
   size_t incomplete = 0;  // fragment sets that never complete
+  friend void PrintTo(const SampleCounts& sample, std::ostream* out) { *out << sample.file; }
 };
 
 // The table of tests/data/ouster-samples/README.md (from the shared sample README), not the

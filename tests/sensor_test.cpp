@@ -101,6 +101,7 @@ TEST(Sensor, WriteStagedMergesKeepsUnknownKeysAndLeavesActive) {
 struct BadWrite {
   json partial;
   std::string key;
+  friend void PrintTo(const BadWrite& write, std::ostream* out) { *out << write.partial.dump(); }
 };
 
 class SensorRejects : public testing::TestWithParam<BadWrite> {};

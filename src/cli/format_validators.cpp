@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include <fmt/ranges.h>
+
 #include "lidartwin/packet/data_format.h"
 
 namespace lidartwin::cli {
@@ -18,9 +20,7 @@ CLI::Validator udp_profile_validator() {
   return CLI::Validator(
       [](std::string& value) -> std::string {
         if (udp_profile_lidar_from_string(value)) return "";
-        std::string names;
-        for (const auto name : udp_profile_lidar_names()) names += (names.empty() ? "" : ", ") + std::string(name);
-        return "expected one of " + names;
+        return fmt::format("expected one of {}", fmt::join(udp_profile_lidar_names(), ", "));
       },
       "PROFILE");
 }

@@ -8,6 +8,8 @@
 
 #include <unistd.h>
 
+#include <fmt/ranges.h>
+
 #include "cli/command.h"
 #include "cli/format_validators.h"
 #include "cli/recorder.h"
@@ -65,17 +67,11 @@ std::unique_ptr<PoseSource> load_poses(const RecordFlags& flags) {
   return std::make_unique<TrajectoryPoses>(std::move(trajectory));
 }
 
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& item : items) out += (out.empty() ? "" : ", ") + item;
-  return out;
-}
-
 Metadata make_record_metadata(const RecordFlags& flags, const SensorProfile& profile) {
   const auto& modes = profile.lidar_modes;
   if (std::find(modes.begin(), modes.end(), flags.mode) == modes.end()) {
-    throw InputError("--mode " + flags.mode + ": not a lidar mode of " + profile.name + "; expected one of " +
-                     join(modes));
+    throw InputError(fmt::format("--mode {}: not a lidar mode of {}; expected one of {}", flags.mode, profile.name,
+                                 fmt::join(modes, ", ")));
   }
   nlohmann::json config = default_config_params();
   config["lidar_mode"] = flags.mode;

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cassert>
 
+#include <fmt/ranges.h>
+
 #include "effects/parameters.h"
 #include "effects/registry.h"
 #include "lidartwin/random/counter_rng.h"
@@ -32,11 +34,7 @@ std::shared_ptr<const Effect> placed(const Effect& effect, size_t position) {
   return copy;
 }
 
-std::string registered_list() {
-  std::string list;
-  for (const auto& name : registered_effects()) list += (list.empty() ? "" : ", ") + name;
-  return list;
-}
+std::string registered_list() { return fmt::format("{}", fmt::join(registered_effects(), ", ")); }
 
 std::unique_ptr<Effect> build_effect(const nlohmann::json& element, const std::string& where) {
   if (!element.is_object()) fail(where, "must be an effect object {\"name\": ..., <parameters>}");

@@ -1,4 +1,8 @@
 // Metadata and firmware endpoints (protocol doc 2.3, 2.5, 3.1).
+#include <ranges>
+
+#include <fmt/ranges.h>
+
 #include "http_api/api_util.h"
 #include "http_api/routes.h"
 
@@ -19,10 +23,10 @@ ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) {
 ApiResponse get_metadata_section(Sensor& sensor, const ApiRequest& request) {
   const std::string name = route_tail(request, "sensor/metadata");
   if (auto section = sensor.metadata_section(name)) return json_response(*section);
-  const auto document = sensor.metadata();
-  std::string known;
-  for (const auto& [key, value] : document.items()) known += (known.empty() ? "" : ", ") + key;
-  throw HttpError(404, "no metadata section \"" + name + "\"; sections: " + known);
+  const nlohmann::json document = sensor.metadata();
+  const auto& sections = document.get_ref<const nlohmann::json::object_t&>();
+  throw HttpError(404, fmt::format("no metadata section \"{}\"; sections: {}", name,
+                                   fmt::join(std::views::keys(sections), ", ")));
 }
 
 // SDK <= 0.15 detects the FW from this (protocol doc 2.2).

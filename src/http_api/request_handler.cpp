@@ -1,6 +1,7 @@
 // Routing: normalize the path, find the endpoint, turn every failure into a 4xx/5xx answer.
 #include "lidartwin/http_api/request_handler.h"
 
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -41,12 +42,6 @@ bool matches(const Route& route, std::string_view resource) {
          resource[route.path.size()] == '/';
 }
 
-std::string join(const std::vector<std::string_view>& items) {
-  std::string text;
-  for (auto item : items) text += (text.empty() ? "" : ", ") + std::string(item);
-  return text;
-}
-
 ApiResponse dispatch(Sensor& sensor, const ApiRequest& request) {
   const std::string path = origin_form_path(request.path);
   const auto resource = resource_of(path);
@@ -62,9 +57,10 @@ ApiResponse dispatch(Sensor& sensor, const ApiRequest& request) {
     allowed.push_back(route.method);
   }
   if (allowed.empty()) throw HttpError(404, "unknown endpoint " + path);
-  auto response = error_response(405, "method " + request.method + " is not allowed on " + path +
-                                          "; allowed: " + join(allowed));
-  response.headers.emplace_back("Allow", join(allowed));
+  const std::string allowed_list = fmt::format("{}", fmt::join(allowed, ", "));
+  auto response =
+      error_response(405, "method " + request.method + " is not allowed on " + path + "; allowed: " + allowed_list);
+  response.headers.emplace_back("Allow", allowed_list);
   return response;
 }
 

@@ -1,6 +1,8 @@
 // lidar_data_format (and the two imu_data_format counts) with the SDK's defaults (protocol doc 3.1).
 #include <algorithm>
 
+#include <fmt/ranges.h>
+
 #include "metadata/metadata_sections.h"
 
 namespace lidartwin::metadata_detail {
@@ -19,11 +21,7 @@ std::vector<int> gen1_pixel_shift(int columns_per_frame) {
   return shift;
 }
 
-std::string profile_names() {
-  std::string names;
-  for (std::string_view name : udp_profile_lidar_names()) names += (names.empty() ? "" : ", ") + std::string(name);
-  return names;
-}
+std::string profile_names() { return fmt::format("{}", fmt::join(udp_profile_lidar_names(), ", ")); }
 
 // Without a pixels_per_column key the product line's beam count applies. Exception: FW < 1.14 wrote
 // no data format at all and sent 64 pixels per column whatever the product (the 16- and 32-beam

@@ -4,6 +4,8 @@
 #include <cstdlib>
 #include <fstream>
 
+#include <fmt/ranges.h>
+
 #include "lidartwin/error.h"
 #include "lidartwin/profile/sensor_profile.h"
 
@@ -15,9 +17,8 @@ bool looks_like_path(std::string_view name) {
 }
 
 std::string list_available() {
-  std::string out;
-  for (const auto& name : available_profiles()) out += (out.empty() ? "" : ", ") + name;
-  return out.empty() ? "none" : out;
+  const std::vector<std::string> names = available_profiles();
+  return names.empty() ? "none" : fmt::format("{}", fmt::join(names, ", "));
 }
 
 nlohmann::json read_json(const std::filesystem::path& path) {

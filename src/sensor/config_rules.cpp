@@ -8,6 +8,8 @@
 #include <optional>
 #include <string_view>
 
+#include <fmt/ranges.h>
+
 #include "lidartwin/error.h"
 #include "lidartwin/json/json_reader.h"
 #include "lidartwin/packet/data_format.h"
@@ -62,9 +64,7 @@ Check integer_in(std::vector<int64_t> allowed) {
   return [allowed = std::move(allowed)](const json& v) -> std::optional<std::string> {
     const auto i = as_int64(v);
     if (i && std::find(allowed.begin(), allowed.end(), *i) != allowed.end()) return std::nullopt;
-    std::string list;
-    for (auto a : allowed) list += (list.empty() ? "" : ", ") + std::to_string(a);
-    return expected("one of " + list, v);
+    return expected(fmt::format("one of {}", fmt::join(allowed, ", ")), v);
   };
 }
 

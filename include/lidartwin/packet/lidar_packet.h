@@ -12,11 +12,8 @@
 
 namespace lidartwin {
 
-// CRC-64/XZ (protocol doc 4.5): it runs on every packet the daemon sends, so it folds with
-// carry-less multiplies where the CPU has them (x86-64 PCLMULQDQ) and uses sliced tables elsewhere.
+// CRC-64/XZ (protocol doc 4.5), which every packet the daemon sends carries (liblzma's lzma_crc64).
 uint64_t crc64_xz(std::span<const uint8_t> bytes);
-// The same CRC by the table method only: the reference the fast path is tested and timed against.
-uint64_t crc64_xz_tables(std::span<const uint8_t> bytes);
 
 // How the last 8 bytes of a non-legacy packet were (or are to be) filled (protocol doc 4.5).
 // kFw2Marker: 0xDEADBEEF0000C0DE, as FW 2.3/2.4 send. kZero: all zero, as FW 2.2 and the FW 3.1
