@@ -149,7 +149,8 @@ class ColumnCasterScene : public ::testing::Test {
     dir_ = std::filesystem::temp_directory_path() / ("lidartwin_caster_test_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir_);
     // A wall at world x = 5 facing the sensor, 0.2 reflective; nothing elsewhere.
-    test::write_glb(dir_ / "wall.glb", {test::quad("wall", {5, -50, -50}, {5, 50, -50}, {5, 50, 50}, {5, -50, 50}, 0.2f)});
+    test::write_glb(dir_ / "wall.glb",
+                    {test::quad("wall", {5, -50, -50}, {5, 50, -50}, {5, 50, 50}, {5, -50, 50}, 0.2f)});
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
   std::filesystem::path dir_;

@@ -47,7 +47,7 @@ TEST(CliPcapInfo, CountsDatagramsByPortAndSize) {
 
 TEST(CliPcapInfo, DecodesFramesWithMetadata) {
   const CliRun run = run_cli("pcap-info " + kSamples + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap --metadata " + kSamples +
-                          "OS-1-128_v2.3.0_1024x10.json");
+                             "OS-1-128_v2.3.0_1024x10.json");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(has_line(run.output, "lidar packets: 192 (8448 bytes on port 7502)")) << run.output;
   EXPECT_TRUE(has_line(run.output, "frames: 3")) << run.output;
@@ -70,7 +70,8 @@ TEST(CliPcapInfo, ChecksCrcsOfFirmware32Packets) {
 TEST(CliPcapInfo, WindowedCaptureHasTheWindowsColumns) {
   // windowed_frame1: azimuth window [180000, 360000] -> column_window [1, 256] of 512: 256 valid
   // columns, 17 packets, sent to port 53750 rather than the metadata's lidar port.
-  const CliRun run = run_cli("pcap-info " + kSamples + "windowed_frame1.pcap --metadata " + kSamples + "windowed_frame1_0.json");
+  const CliRun run =
+      run_cli("pcap-info " + kSamples + "windowed_frame1.pcap --metadata " + kSamples + "windowed_frame1_0.json");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("lidar packets: 17 (8448 bytes on port 53750"), std::string::npos) << run.output;
   EXPECT_TRUE(has_line(run.output, "valid columns per frame: 256")) << run.output;
@@ -80,14 +81,15 @@ TEST(CliPcapInfo, SeparatesTwoSensorsOnOnePort) {
   // same_ports_nonlegacy: OS-0-128 (FUSA dual) and OS-1-64-AH (RNG19 dual), both 16640-byte packets
   // on 7502: with the first sensor's metadata, the other one's packet is skipped by prod_sn/init_id.
   const CliRun run = run_cli("pcap-info " + kSamples + "same_ports_nonlegacy.pcap --metadata " + kSamples +
-                          "same_ports_nonlegacy.1.json");
+                             "same_ports_nonlegacy.1.json");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(has_line(run.output, "lidar packets: 1 (16640 bytes on port 7502)")) << run.output;
   EXPECT_NE(run.output.find("init_id differ): 1 packets"), std::string::npos) << run.output;
 }
 
 TEST(CliPcapInfo, ReportsLidarOffForAnImuOnlyCapture) {
-  const CliRun run = run_cli("pcap-info " + kSamples + "imu_zm_no_lidar.pcap --metadata " + kSamples + "imu_zm_no_lidar_0.json");
+  const CliRun run =
+      run_cli("pcap-info " + kSamples + "imu_zm_no_lidar.pcap --metadata " + kSamples + "imu_zm_no_lidar_0.json");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(has_line(run.output, "  port  7513     452 bytes  x 8")) << run.output;
   EXPECT_NE(run.output.find("lidar: off"), std::string::npos) << run.output;
@@ -98,7 +100,8 @@ TEST(CliPcapInfo, MissingOrCorruptInputExitsWith2) {
   EXPECT_EQ(missing.exit_code, 2) << missing.output;
   EXPECT_NE(missing.output.find("/nonexistent/capture.pcap"), std::string::npos) << missing.output;
 
-  const std::string corrupt = std::filesystem::temp_directory_path() / ("lidartwin_corrupt_" + std::to_string(getpid()) + ".pcap");
+  const std::string corrupt =
+      std::filesystem::temp_directory_path() / ("lidartwin_corrupt_" + std::to_string(getpid()) + ".pcap");
   {
     std::ifstream in(kSamples + "crc_test.pcap", std::ios::binary);
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -109,7 +112,8 @@ TEST(CliPcapInfo, MissingOrCorruptInputExitsWith2) {
   EXPECT_NE(truncated.output.find(corrupt + ": record"), std::string::npos) << truncated.output;
   std::filesystem::remove(corrupt);
 
-  const CliRun bad_metadata = run_cli("pcap-info " + kSamples + "crc_test.pcap --metadata " + kSamples + "crc_test.pcap");
+  const CliRun bad_metadata =
+      run_cli("pcap-info " + kSamples + "crc_test.pcap --metadata " + kSamples + "crc_test.pcap");
   EXPECT_EQ(bad_metadata.exit_code, 2) << bad_metadata.output;
   EXPECT_NE(bad_metadata.output.find("not valid JSON"), std::string::npos) << bad_metadata.output;
 }

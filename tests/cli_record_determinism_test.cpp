@@ -32,11 +32,10 @@ class RecordDeterminism : public ::testing::Test {
   // The plant flight with the profile's full noise chain: moving poses, noise, dropout.
   std::filesystem::path record(const std::string& name, int seed, int threads) {
     const auto out = dir_ / name;
-    const std::string arguments = "record --profile os1-64 --mode 1024x10 --frames 3 --scene " +
-                                  (kSource / "scenes/plant.glb").string() + " --trajectory " +
-                                  (kSource / "scenes/plant_inspection.tum").string() + " --seed " +
-                                  std::to_string(seed) + " --threads " + std::to_string(threads) + " --out " +
-                                  out.string();
+    const std::string arguments =
+        "record --profile os1-64 --mode 1024x10 --frames 3 --scene " + (kSource / "scenes/plant.glb").string() +
+        " --trajectory " + (kSource / "scenes/plant_inspection.tum").string() + " --seed " + std::to_string(seed) +
+        " --threads " + std::to_string(threads) + " --out " + out.string();
     EXPECT_EQ(test::run_lidartwin(arguments), 0) << arguments;
     return out;
   }

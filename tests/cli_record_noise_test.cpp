@@ -39,8 +39,8 @@ fs::path record(const std::string& profile, const std::string& name, int frames,
   const fs::path dir = fs::path(testing::TempDir()) / ("noise_" + profile + "_" + name);
   fs::remove_all(dir);
   const std::string args = "record --profile " + profile + " --scene " + kHall + " --pose \"" + kHallPose +
-                           "\" --mode 512x10 --frames " + std::to_string(frames) + " --seed 7 --out " +
-                           dir.string() + (ideal ? " --ideal" : "") + " > /dev/null 2>&1";
+                           "\" --mode 512x10 --frames " + std::to_string(frames) + " --seed 7 --out " + dir.string() +
+                           (ideal ? " --ideal" : "") + " > /dev/null 2>&1";
   EXPECT_EQ(run_lidartwin(args), 0) << args;
   return dir;
 }
@@ -91,7 +91,8 @@ void expect_bins_match(const std::vector<Bin>& bins, size_t min_bins, const char
     std::printf("%s [%5.1f, %5.1f) m: %6zu pixels  sigma %.4f m  law %.4f m  ratio %.3f  mean %+.4f m\n", what,
                 bin.lo_m, bin.hi_m, bin.n, bin.sigma(), bin.expected(), ratio, bin.sum / static_cast<double>(bin.n));
     EXPECT_NEAR(ratio, 1.0, 0.05) << what << " bin [" << bin.lo_m << ", " << bin.hi_m << ") m";
-    EXPECT_NEAR(bin.sum / static_cast<double>(bin.n), 0.0, 3 * bin.expected() / std::sqrt(static_cast<double>(bin.n)) + 1e-3)
+    EXPECT_NEAR(bin.sum / static_cast<double>(bin.n), 0.0,
+                3 * bin.expected() / std::sqrt(static_cast<double>(bin.n)) + 1e-3)
         << "zero-mean noise expected in bin [" << bin.lo_m << ", " << bin.hi_m << ")";
   }
   EXPECT_GE(checked, min_bins) << what << ": the hall must put targets at every range of the law";

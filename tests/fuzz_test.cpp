@@ -139,8 +139,9 @@ std::vector<std::filesystem::path> metadata_samples() {
 }
 
 nlohmann::json random_value(std::mt19937_64& rng, int depth) {
-  static const char* const kKeys[] = {"sensor_info", "beam_intrinsics", "lidar_mode", "prod_line", "data_format",
-                                      "beam_altitude_angles", "pixels_per_column", "column_window", "udp_dest"};
+  static const char* const kKeys[] = {"sensor_info",       "beam_intrinsics", "lidar_mode",
+                                      "prod_line",         "data_format",     "beam_altitude_angles",
+                                      "pixels_per_column", "column_window",   "udp_dest"};
   switch (rng() % (depth > 2 ? 5 : 7)) {
     case 0: return nullptr;
     case 1: return rng() % 2 == 0;
@@ -260,7 +261,7 @@ std::vector<size_t> record_offsets(const std::vector<uint8_t>& bytes) {
 }
 
 TEST(FuzzPcap, CorruptedHeadersReadOrFailCleanly) {
-  std::mt19937_64 rng(41);  // fixed seed: a crash must reproduce
+  std::mt19937_64 rng(41);                                                     // fixed seed: a crash must reproduce
   const auto original = test::read_bytes(kOusterSamples / "same_ports.pcap");  // IP-fragmented
   const std::vector<size_t> records = record_offsets(original);
   test::TempFile file(".pcap");
@@ -299,7 +300,8 @@ TEST(FuzzPcap, FragmentSoupReadsOrFailsCleanly) {
       ip.offset = static_cast<uint32_t>(rng() % 8192) * 8 % (rng() % 2 ? 4000 : 65536);
       ip.more_fragments = rng() % 3 != 0;
       std::vector<uint8_t> payload(rng() % 1480, static_cast<uint8_t>(rng() % 2));
-      if (ip.offset == 0 && payload.size() >= 8) payload = test::udp_bytes(1, 2, std::vector<uint8_t>(payload.size() - 8));
+      if (ip.offset == 0 && payload.size() >= 8)
+        payload = test::udp_bytes(1, 2, std::vector<uint8_t>(payload.size() - 8));
       records.push_back({static_cast<uint32_t>(trial), static_cast<uint32_t>(n), test::ipv4_frame(ip, payload)});
     }
     file.write(test::raw_pcap(records));

@@ -46,8 +46,8 @@ lidartwin::SensorOptions test_options() {
 
 // What the SDK's parse_and_validate_metadata needs (protocol doc 1.7, 3.1 "crit" keys).
 void expect_sdk_parsable(const json& metadata) {
-  for (const char* section : {"sensor_info", "beam_intrinsics", "imu_intrinsics", "lidar_intrinsics",
-                              "config_params", "lidar_data_format", "calibration_status"}) {
+  for (const char* section : {"sensor_info", "beam_intrinsics", "imu_intrinsics", "lidar_intrinsics", "config_params",
+                              "lidar_data_format", "calibration_status"}) {
     ASSERT_TRUE(metadata.contains(section)) << section;
   }
   const auto& info = metadata["sensor_info"];
@@ -75,8 +75,7 @@ void expect_sdk_parsable(const json& metadata) {
 class HttpApi : public testing::Test {
  protected:
   explicit HttpApi(lidartwin::SensorOptions options = test_options())
-      : sensor_(test_identity(), std::move(options)), server_(sensor_, {.address = "127.0.0.1",
-                                                                        .port = 0}) {
+      : sensor_(test_identity(), std::move(options)), server_(sensor_, {.address = "127.0.0.1", .port = 0}) {
     server_.start();
     sensor_.subscribe([this](const Sensor::StreamConfigPtr& config) {
       std::lock_guard lock(notified_mutex_);
@@ -152,11 +151,10 @@ TEST_F(HttpApi, SensorPacketSourceSequence) {
 
   EXPECT_EQ(lidartwin::test::auto_detected_udp_dest(http), "127.0.0.1");
   EXPECT_EQ(http.get_json("sensor/config?staging=true").at("udp_dest"), "192.0.2.1");  // restored
-  EXPECT_EQ(sensor_.stream_config()->init_id, init_id);  // the probe did not reinitialize
+  EXPECT_EQ(sensor_.stream_config()->init_id, init_id);                                // the probe did not reinitialize
   EXPECT_EQ(http.get_json("sensor/config"), active);
 
-  lidartwin::test::set_config(http, {{"udp_dest", "127.0.0.1"}, {"operating_mode", "NORMAL"}},
-                              false);
+  lidartwin::test::set_config(http, {{"udp_dest", "127.0.0.1"}, {"operating_mode", "NORMAL"}}, false);
   const json metadata = lidartwin::test::collect_metadata(http);
   expect_sdk_parsable(metadata);
   EXPECT_EQ(metadata["config_params"]["udp_dest"], "127.0.0.1");
@@ -171,16 +169,16 @@ TEST_F(HttpApi, OusterRosTrace) {
                            {"signal_multiplier", 1},
                            {"lidar_mode", "1024x10"},
                            {"timestamp_mode", "TIME_FROM_INTERNAL_OSC"}};
-  http.get_json("sensor/metadata/sensor_info");                  // SensorHttp::create
-  lidartwin::test::set_config(http, ros_config, true);           // configure_sensor
-  const auto generation = sensor_.stream_config()->generation;   // first reinit done
-  http.get_json("sensor/metadata/sensor_info");                  // init_client: create
+  http.get_json("sensor/metadata/sensor_info");                 // SensorHttp::create
+  lidartwin::test::set_config(http, ros_config, true);          // configure_sensor
+  const auto generation = sensor_.stream_config()->generation;  // first reinit done
+  http.get_json("sensor/metadata/sensor_info");                 // init_client: create
   json with_ports = ros_config;
   with_ports.update({{"udp_port_lidar", 50001}, {"udp_port_imu", 50002}, {"operating_mode", "NORMAL"}});
   lidartwin::test::set_config(http, with_ports, true);
   EXPECT_EQ(sensor_.stream_config()->generation, generation + 1);
   const json first = lidartwin::test::collect_metadata(http);
-  http.get_json("sensor/metadata/sensor_info");                  // get_metadata: create
+  http.get_json("sensor/metadata/sensor_info");  // get_metadata: create
   const json second = lidartwin::test::collect_metadata(http);
   expect_sdk_parsable(second);
   EXPECT_EQ(first, second);
@@ -193,12 +191,13 @@ TEST_F(HttpApi, OusterRosTrace) {
 // SDK <= 0.15 (protocol doc 2.2): FW from system/firmware, config through the cmd API only.
 TEST_F(HttpApi, Sdk015CmdApiSequence) {
   SdkHttp http(port());
-  EXPECT_EQ(http.get("system/firmware"),
-            R"({"fw":"ousteros-image-prod-bootes-v3.1.0+20240426041747"})");
-  lidartwin::test::set_config_cmd(
-      http, {{"udp_port_lidar", 45000}, {"udp_port_imu", 45001}, {"lidar_mode", "2048x10"},
-             {"unknown_to_fw", {{"kept", true}}}},
-      /*udp_dest_auto=*/true, /*persist=*/true);
+  EXPECT_EQ(http.get("system/firmware"), R"({"fw":"ousteros-image-prod-bootes-v3.1.0+20240426041747"})");
+  lidartwin::test::set_config_cmd(http,
+                                  {{"udp_port_lidar", 45000},
+                                   {"udp_port_imu", 45001},
+                                   {"lidar_mode", "2048x10"},
+                                   {"unknown_to_fw", {{"kept", true}}}},
+                                  /*udp_dest_auto=*/true, /*persist=*/true);
   const auto active = json::parse(http.get("sensor/cmd/get_config_param?args=active"));
   EXPECT_EQ(active.at("udp_dest"), "127.0.0.1");
   EXPECT_EQ(active.at("lidar_mode"), "2048x10");
@@ -214,17 +213,19 @@ TEST_F(HttpApi, Sdk015CmdApiSequence) {
 }
 
 TEST_F(HttpApi, ProxyFormRequestLinesWork) {
-  const auto received = lidartwin::test::raw_exchange(
-      port(), "GET http://127.0.0.1/api/v1/sensor/metadata/sensor_info HTTP/1.1\r\n"
-              "Host: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  const auto received =
+      lidartwin::test::raw_exchange(port(),
+                                    "GET http://127.0.0.1/api/v1/sensor/metadata/sensor_info HTTP/1.1\r\n"
+                                    "Host: 127.0.0.1\r\nConnection: close\r\n\r\n");
   EXPECT_THAT(received, testing::StartsWith("HTTP/1.1 200"));
   EXPECT_EQ(json::parse(lidartwin::test::last_body(received)).at("prod_line"), "OS-1-64");
 
   const std::string body = R"({"udp_dest":"@auto"})";
   const auto posted = lidartwin::test::raw_exchange(
-      port(), "POST http://127.0.0.1:80/api/v1/sensor/config?staging=true&reinit=false&persist=false "
-              "HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: " +
-                  std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body);
+      port(),
+      "POST http://127.0.0.1:80/api/v1/sensor/config?staging=true&reinit=false&persist=false "
+      "HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: " +
+          std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body);
   EXPECT_THAT(posted, testing::StartsWith("HTTP/1.1 200"));
   EXPECT_EQ(sensor_.staged_config().at("udp_dest"), "127.0.0.1");
 }
@@ -250,10 +251,12 @@ TEST_F(HttpApi, ExpectContinueIsAnswered) {
   json full = sensor_.active_config();
   full["padding"] = std::string(1500, 'x');
   const std::string body = full.dump();
-  const auto received = lidartwin::test::raw_exchange(
-      port(), "POST /api/v1/sensor/config?staging=true&reinit=false&persist=false HTTP/1.1\r\n"
-              "Host: x\r\nExpect: 100-continue\r\nContent-Type: application/json\r\n"
-              "Content-Length: " + std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body);
+  const auto received =
+      lidartwin::test::raw_exchange(port(),
+                                    "POST /api/v1/sensor/config?staging=true&reinit=false&persist=false HTTP/1.1\r\n"
+                                    "Host: x\r\nExpect: 100-continue\r\nContent-Type: application/json\r\n"
+                                    "Content-Length: " +
+                                        std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body);
   EXPECT_THAT(received, testing::StartsWith("HTTP/1.1 100 Continue"));
   EXPECT_THAT(received, HasSubstr("HTTP/1.1 200"));
   EXPECT_EQ(sensor_.staged_config().at("padding").get<std::string>().size(), 1500u);
@@ -299,32 +302,30 @@ const std::string kApply = "sensor/config?staging=true&reinit=true&persist=false
 
 INSTANTIATE_TEST_SUITE_P(
     BadInput, HttpApiRejects,
-    testing::Values(
-        BadRequest{"POST", kStaged, R"({"udp_dest": })", 400, "line 1, column 14"},
-        BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10",)", 400, "not valid JSON"},
-        BadRequest{"POST", kStaged, R"({"udp_port_lidar": "7502"})", 400, "udp_port_lidar"},
-        BadRequest{"POST", kStaged, R"({"azimuth_window": [0, 400000]})", 400, "azimuth_window"},
-        BadRequest{"POST", kStaged, R"({"lidar_mode": "1024x15"})", 400, "lidar_mode"},
-        BadRequest{"POST", kStaged, R"({"signal_multiplier": 4})", 400, "signal_multiplier"},
-        BadRequest{"POST", kStaged, R"([1, 2])", 400, "JSON object"},
-        // Valid key plus invalid key with reinit: nothing applied, no reinit.
-        BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10", "udp_port_imu": 1e9})", 400,
-                   "udp_port_imu"},
-        BadRequest{"POST", "sensor/config?reinit=maybe", "{}", 400, "reinit"},
-        BadRequest{"GET", "sensor/config?staging=yes", "", 400, "staging"},
-        BadRequest{"GET", "sensor/cmd/set_config_param?args=.+%7Bnope", "", 400, "not valid JSON"},
-        BadRequest{"GET", "sensor/cmd/set_config_param?args=udp_port_lidar+x", "", 400,
-                   "udp_port_lidar"},
-        BadRequest{"GET", "sensor/cmd/get_config_param?args=future", "", 400, "active"},
-        BadRequest{"GET", "sensor/cmd/get_config_param", "", 400, "args"},
-        BadRequest{"PUT", "user/data", "42", 400, "JSON string"},
-        BadRequest{"PUT", "user/data?policy=forever", "\"x\"", 400, "policy"},
-        BadRequest{"GET", "sensor/nope", "", 404, "unknown endpoint"},
-        BadRequest{"GET", "/index.html", "", 404, "/api/v1/"},
-        BadRequest{"GET", "sensor/metadata/nope", "", 404, "lidar_data_format"},
-        BadRequest{"GET", "zone_monitor/active/zip", "", 404, "zone"},
-        BadRequest{"DELETE", "sensor/config", "", 405, "GET, POST"},
-        BadRequest{"POST", "sensor/metadata", "{}", 405, "GET"}));
+    testing::Values(BadRequest{"POST", kStaged, R"({"udp_dest": })", 400, "line 1, column 14"},
+                    BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10",)", 400, "not valid JSON"},
+                    BadRequest{"POST", kStaged, R"({"udp_port_lidar": "7502"})", 400, "udp_port_lidar"},
+                    BadRequest{"POST", kStaged, R"({"azimuth_window": [0, 400000]})", 400, "azimuth_window"},
+                    BadRequest{"POST", kStaged, R"({"lidar_mode": "1024x15"})", 400, "lidar_mode"},
+                    BadRequest{"POST", kStaged, R"({"signal_multiplier": 4})", 400, "signal_multiplier"},
+                    BadRequest{"POST", kStaged, R"([1, 2])", 400, "JSON object"},
+                    // Valid key plus invalid key with reinit: nothing applied, no reinit.
+                    BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10", "udp_port_imu": 1e9})", 400,
+                               "udp_port_imu"},
+                    BadRequest{"POST", "sensor/config?reinit=maybe", "{}", 400, "reinit"},
+                    BadRequest{"GET", "sensor/config?staging=yes", "", 400, "staging"},
+                    BadRequest{"GET", "sensor/cmd/set_config_param?args=.+%7Bnope", "", 400, "not valid JSON"},
+                    BadRequest{"GET", "sensor/cmd/set_config_param?args=udp_port_lidar+x", "", 400, "udp_port_lidar"},
+                    BadRequest{"GET", "sensor/cmd/get_config_param?args=future", "", 400, "active"},
+                    BadRequest{"GET", "sensor/cmd/get_config_param", "", 400, "args"},
+                    BadRequest{"PUT", "user/data", "42", 400, "JSON string"},
+                    BadRequest{"PUT", "user/data?policy=forever", "\"x\"", 400, "policy"},
+                    BadRequest{"GET", "sensor/nope", "", 404, "unknown endpoint"},
+                    BadRequest{"GET", "/index.html", "", 404, "/api/v1/"},
+                    BadRequest{"GET", "sensor/metadata/nope", "", 404, "lidar_data_format"},
+                    BadRequest{"GET", "zone_monitor/active/zip", "", 404, "zone"},
+                    BadRequest{"DELETE", "sensor/config", "", 405, "GET, POST"},
+                    BadRequest{"POST", "sensor/metadata", "{}", 405, "GET"}));
 
 TEST_F(HttpApi, WrongMethodListsTheAllowedOnes) {
   const auto result = client().Delete("/api/v1/sensor/config");
@@ -343,7 +344,8 @@ TEST_F(HttpApi, HugeBodiesAre413AndTheServerStaysUp) {
   EXPECT_THAT(json::parse(result->body).at("error").get<std::string>(), HasSubstr("too large"));
 
   // Chunked bodies have no Content-Length for httplib to check: our own limit applies.
-  std::string chunked = "POST /api/v1/" + kStaged + " HTTP/1.1\r\nHost: x\r\n"
+  std::string chunked = "POST /api/v1/" + kStaged +
+                        " HTTP/1.1\r\nHost: x\r\n"
                         "Transfer-Encoding: chunked\r\nConnection: close\r\n\r\n";
   const std::string chunk(64 * 1024, 'a');
   for (int i = 0; i < 40; ++i) chunked += "10000\r\n" + chunk + "\r\n";
@@ -365,8 +367,7 @@ TEST_F(HttpApi, MalformedRequestLineGetsAJson400) {
 
 TEST_F(HttpApi, PlainPostAppliesAndReinitializes) {
   const auto init_id = sensor_.stream_config()->init_id;
-  const auto result = client().Post("/api/v1/sensor/config", R"({"lidar_mode":"512x20"})",
-                                    "application/json");
+  const auto result = client().Post("/api/v1/sensor/config", R"({"lidar_mode":"512x20"})", "application/json");
   ASSERT_TRUE(result);
   EXPECT_EQ(result->status, 200);
   EXPECT_EQ(sensor_.active_config().at("lidar_mode"), "512x20");
@@ -436,8 +437,7 @@ TEST_F(HttpApi, ConcurrentClientsAreServed) {
 }
 
 std::filesystem::path state_file_path() {
-  return std::filesystem::temp_directory_path() /
-         ("lidartwin_http_state_" + std::to_string(::getpid()) + ".json");
+  return std::filesystem::temp_directory_path() / ("lidartwin_http_state_" + std::to_string(::getpid()) + ".json");
 }
 
 lidartwin::SensorOptions with_state_file() {
@@ -487,8 +487,7 @@ TEST(HttpServer, EachSensorCanHaveItsOwnLoopbackAddress) {
   ASSERT_TRUE(result);
   EXPECT_EQ(result->status, 200);
   EXPECT_EQ(sensor.staged_config().at("udp_dest"), "127.0.0.1");  // the client's address
-  EXPECT_EQ(json::parse(http.Get("/api/v1/system/network")->body).at("ipv4").at("addr"),
-            "127.0.0.2/8");
+  EXPECT_EQ(json::parse(http.Get("/api/v1/system/network")->body).at("ipv4").at("addr"), "127.0.0.2/8");
 }
 
 TEST(HttpServer, AnAddressOfAnotherHostIsExplained) {
@@ -509,8 +508,7 @@ TEST(HttpServer, PermissionDeniedOnPort80ExplainsTheRemedies) {
   if (::geteuid() == 0) GTEST_SKIP() << "root may bind port 80; only the message is checked";
   lidartwin::Sensor sensor(test_identity());
   HttpServer server(sensor, {.address = "127.0.0.1", .port = 80});
-  EXPECT_THAT([&] { server.start(); },
-              testing::ThrowsMessage<lidartwin::BindError>(HasSubstr("setcap")));
+  EXPECT_THAT([&] { server.start(); }, testing::ThrowsMessage<lidartwin::BindError>(HasSubstr("setcap")));
 }
 
 }  // namespace

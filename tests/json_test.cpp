@@ -25,11 +25,17 @@ const Location kRoot{"profiles/x.json", ""};
 TEST(JsonReader, MessagesNameSourcePointerWantAndGot) {
   const json doc = json::parse(R"({"effects": [{"sigma_m": "0.01"}]})");
   const Location at = kRoot.child("effects").child(0).child("sigma_m");
-  EXPECT_EQ(error_of([&] { read_number(doc["effects"][0]["sigma_m"], at, Range{0, 1}); }),
+  EXPECT_EQ(error_of([&] {
+              read_number(doc["effects"][0]["sigma_m"], at, Range{0, 1});
+            }),
             "profiles/x.json: /effects/0/sigma_m: must be a number in [0, 1], got a string \"0.01\"");
-  EXPECT_EQ(error_of([&] { read_number(json(2.5), at, Range{0, 1, false, true}); }),
+  EXPECT_EQ(error_of([&] {
+              read_number(json(2.5), at, Range{0, 1, false, true});
+            }),
             "profiles/x.json: /effects/0/sigma_m: must be in [0, 1), got 2.5");
-  EXPECT_EQ(error_of([&] { read_string(json::array({1, 2}), kRoot); }),
+  EXPECT_EQ(error_of([&] {
+              read_string(json::array({1, 2}), kRoot);
+            }),
             "profiles/x.json: /: must be a string, got an array of 2");
 }
 
@@ -44,21 +50,28 @@ TEST(JsonReader, IntegersMayBeWrittenAsWholeFloats) {
 
 TEST(JsonReader, NumbersAreFiniteAndCounted) {
   EXPECT_EQ(read_numbers(json::array({1, 2}), kRoot, Range{0, 5}, 2), (std::vector<double>{1, 2}));
-  EXPECT_EQ(error_of([&] { read_numbers(json::array({1, 2, 3}), kRoot, Range{0, 5}, 2); }),
+  EXPECT_EQ(error_of([&] {
+              read_numbers(json::array({1, 2, 3}), kRoot, Range{0, 5}, 2);
+            }),
             "profiles/x.json: /: must be 2 numbers in [0, 5], got an array of 3");
-  EXPECT_EQ(error_of([&] { read_numbers(json::array({1, 9}), kRoot, Range{0, 5}); }),
+  EXPECT_EQ(error_of([&] {
+              read_numbers(json::array({1, 9}), kRoot, Range{0, 5});
+            }),
             "profiles/x.json: /1: must be in [0, 5], got 9");
 }
 
 TEST(ObjectReader, UnknownKeysAreErrorsUnlessKept) {
   const json object = json::parse(R"({"min_m": 0.3, "max_rnage_m": 100})");
-  EXPECT_EQ(error_of([&] { ObjectReader(object, kRoot, {"min_m", "max_m"}, UnknownKeys::kReject, "range_limits"); }),
+  EXPECT_EQ(error_of([&] {
+              ObjectReader(object, kRoot, {"min_m", "max_m"}, UnknownKeys::kReject, "range_limits");
+            }),
             "profiles/x.json: /max_rnage_m: unknown key of range_limits; allowed keys here: min_m, max_m");
   const ObjectReader kept(object, kRoot, {"min_m"}, UnknownKeys::kKeep);
   EXPECT_NE(kept.find("min_m"), nullptr);
   EXPECT_EQ(kept.find("max_m"), nullptr);
   EXPECT_EQ(error_of([&] { kept.at("max_m", "a number"); }), "profiles/x.json: /max_m: missing (expected a number)");
-  EXPECT_EQ(error_of([&] { ObjectReader(json(3), kRoot, {}); }), "profiles/x.json: /: must be an object, got a number 3");
+  EXPECT_EQ(error_of([&] { ObjectReader(json(3), kRoot, {}); }),
+            "profiles/x.json: /: must be an object, got a number 3");
 }
 
 TEST(JsonReader, PointersEscapeTheirTokens) {

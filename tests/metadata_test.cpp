@@ -143,12 +143,13 @@ TEST(Metadata, OldReducedChannelFilesKeepTheir64Pixels) {
   // FW 1.12/1.13 OS-1-16/32 files list 64 angles and no data format: that FW sent 64 pixels per
   // column. The current SDK rejects these files (the beam count of the product line differs); we
   // take 64, the size of the data. FW 1.14 files have a data format and 16 angles.
-  for (const char* file : {"metadata/1_12_os1-991937000062-16A0_legacy.json",
-                           "metadata/1_13_os1-991937000062-16A0_legacy.json",
-                           "metadata/1_13_os1-991937000062-32A02_legacy.json"}) {
+  for (const char* file :
+       {"metadata/1_12_os1-991937000062-16A0_legacy.json", "metadata/1_13_os1-991937000062-16A0_legacy.json",
+        "metadata/1_13_os1-991937000062-32A02_legacy.json"}) {
     EXPECT_EQ(load_metadata(kSamples / file).format.pixels_per_column, 64) << file;
   }
-  EXPECT_EQ(load_metadata(kSamples / "metadata/1_14_beta_os1-991937000062-16A0_legacy.json").format.pixels_per_column, 16);
+  EXPECT_EQ(load_metadata(kSamples / "metadata/1_14_beta_os1-991937000062-16A0_legacy.json").format.pixels_per_column,
+            16);
 }
 
 TEST(Metadata, ReadsColumnWindowsAndModes) {
@@ -206,7 +207,8 @@ std::string error_of(const nlohmann::json& document, const std::string& source =
 TEST(MetadataErrors, NamesFilePathAndExpectedCount) {
   nlohmann::json doc = read_json(kDocExample);
   doc["beam_intrinsics"]["beam_altitude_angles"].erase(63);
-  EXPECT_EQ(error_of(doc), "OS-1-64.json: /beam_intrinsics/beam_altitude_angles: must be 64 numbers, got an array of 63");
+  EXPECT_EQ(error_of(doc),
+            "OS-1-64.json: /beam_intrinsics/beam_altitude_angles: must be 64 numbers, got an array of 63");
 }
 
 TEST(MetadataErrors, NamesEachMissingSectionOfAPartialSet) {
@@ -241,7 +243,8 @@ TEST(MetadataErrors, RejectsMistypedAndOutOfRangeValues) {
       {"/sensor_info/prod_sn", 122201000123, "/sensor_info/prod_sn: must be a string"},
       {"/sensor_info/prod_sn", "12-34", "/sensor_info/prod_sn: must be a string of decimal digits"},
       {"/sensor_info/initialization_id", "7", "/sensor_info/initialization_id: must be an integer"},
-      {"/sensor_info/initialization_id", 1 << 24, "/sensor_info/initialization_id: must be an integer in [0, 16777215]"},
+      {"/sensor_info/initialization_id", 1 << 24,
+       "/sensor_info/initialization_id: must be an integer in [0, 16777215]"},
       {"/config_params/lidar_mode", "1000x10", "/config_params/lidar_mode: must be one of 512x10"},
       {"/config_params/udp_port_lidar", 70000, "/config_params/udp_port_lidar: must be an integer in [0, 65535]"},
       {"/config_params/azimuth_window", {0}, "/config_params/azimuth_window: must be [start, end]"},
@@ -250,7 +253,9 @@ TEST(MetadataErrors, RejectsMistypedAndOutOfRangeValues) {
       {"/lidar_data_format/header_type", "FANCY", "must be STANDARD or FUSA"},
       {"/lidar_data_format/pixels_per_column", 0, "must be an integer in [1, 128]"},
       {"/lidar_data_format/pixel_shift_by_row", "none", "must be an array of integers"},
-      {"/beam_intrinsics/beam_to_lidar_transform", {1, 0}, "beam_to_lidar_transform: must be 16 numbers, got an array of 2"},
+      {"/beam_intrinsics/beam_to_lidar_transform",
+       {1, 0},
+       "beam_to_lidar_transform: must be 16 numbers, got an array of 2"},
       {"/beam_intrinsics/lidar_origin_to_beam_origin_mm", nullptr, "must be a number, got null"},
       {"/lidar_intrinsics", "text", nullptr},  // a string section is FW 1.12's error reply: allowed
       {"/imu_intrinsics", 5, "/imu_intrinsics: must be an object"},
@@ -287,7 +292,8 @@ TEST(MetadataErrors, LoadNamesAMissingOrBrokenFile) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/meta.json"), std::string::npos);
   }
-  const auto broken = std::filesystem::temp_directory_path() / ("lidartwin_broken_" + std::to_string(getpid()) + ".json");
+  const auto broken =
+      std::filesystem::temp_directory_path() / ("lidartwin_broken_" + std::to_string(getpid()) + ".json");
   std::ofstream(broken) << "{\"sensor_info\": ";
   try {
     load_metadata(broken);
@@ -314,9 +320,10 @@ TEST(MakeMetadata, ReproducesTheProtocolDocExample) {
 
 TEST(MakeMetadata, DerivesTheFormatRealFirmware3SensorsReport) {
   // FW 3.x files: shifts are round(az * W / 360) (protocol doc 3.4), windows per doc 6.4, IMU counts.
-  for (const char* file : {"shot_limiting_test.json", "crc_test.json", "metadata/3_0_1_os-122246000293-128.json",
-                           "OS-1-128_767798045_1024x10_20230712_120049.json", "same_ports_nonlegacy.1.json",
-                           "windowed_frame1_0.json", "windowed_frame2_0.json", "metadata/2_5_0_os-992146000760-128.json"}) {
+  for (const char* file :
+       {"shot_limiting_test.json", "crc_test.json", "metadata/3_0_1_os-122246000293-128.json",
+        "OS-1-128_767798045_1024x10_20230712_120049.json", "same_ports_nonlegacy.1.json", "windowed_frame1_0.json",
+        "windowed_frame2_0.json", "metadata/2_5_0_os-992146000760-128.json"}) {
     const Metadata real = load_metadata(kSamples / file);
     LidarDataFormat made = make_from_file(kSamples / file).format;
     if (std::string(file).starts_with("windowed") || std::string(file).starts_with("metadata/2_5")) {
@@ -327,8 +334,10 @@ TEST(MakeMetadata, DerivesTheFormatRealFirmware3SensorsReport) {
 }
 
 TEST(MakeMetadata, RoundTripsThroughParse) {
-  nlohmann::json config = {{"lidar_mode", "2048x10"}, {"udp_profile_imu", "ACCEL32_GYRO32_NMEA"},
-                           {"azimuth_window", {300000, 100000}}, {"udp_profile_lidar", "FUSA_RNG15_RFL8_NIR8_DUAL"}};
+  nlohmann::json config = {{"lidar_mode", "2048x10"},
+                           {"udp_profile_imu", "ACCEL32_GYRO32_NMEA"},
+                           {"azimuth_window", {300000, 100000}},
+                           {"udp_profile_lidar", "FUSA_RNG15_RFL8_NIR8_DUAL"}};
   const Metadata made = make_metadata(load_metadata(kDocExample).sensor_info, load_metadata(kDocExample).beams, config);
   EXPECT_EQ(made.format.header_type, HeaderType::kFusa);
   EXPECT_EQ(made.format.imu_measurements_per_packet, 8);  // 640 Hz / (10 fps * 8 packets)
@@ -350,7 +359,6 @@ TEST(MakeMetadata, NamesTheBadConfigKey) {
 }  // namespace
 }  // namespace lidartwin
 
-
 namespace lidartwin {
 namespace {
 // lidar_frame_azimuth_offset (FW 3.2 POST config docs): 90000 rotates the lidar frame 90 deg
@@ -362,7 +370,7 @@ TEST(MakeMetadata, LidarFrameAzimuthOffsetRotatesTheServedLidarFrame) {
   EXPECT_EQ(unrotated.beams.lidar_to_sensor, base.beams.lidar_to_sensor);
   const Metadata rotated = make_metadata(base.sensor_info, base.beams, {{"lidar_frame_azimuth_offset", 90000}});
   const auto& T = rotated.beams.lidar_to_sensor;
-  EXPECT_NEAR(T[0], 0.0, 1e-12);   // image of lidar +X: (T[0], T[4], T[8]) = sensor -Y
+  EXPECT_NEAR(T[0], 0.0, 1e-12);  // image of lidar +X: (T[0], T[4], T[8]) = sensor -Y
   EXPECT_NEAR(T[4], -1.0, 1e-12);
   EXPECT_NEAR(T[8], 0.0, 1e-12);
   EXPECT_EQ(T[11], base.beams.lidar_to_sensor[11]);  // translation unchanged

@@ -159,7 +159,6 @@ TEST(Packet, LegacyColumnsCarryFrameIdEncoderCountAndStatus) {
   }
 }
 
-
 // Every profile x H x columns_per_packet; combinations over 65535 bytes must be refused.
 TEST(Packet, RoundTripsEveryProfileRandomized) {
   // Fixed seed: a failure must reproduce exactly; the values only need to cover every bit.
@@ -172,7 +171,8 @@ TEST(Packet, RoundTripsEveryProfileRandomized) {
         try {
           format = std::make_unique<PacketFormat>(f);
         } catch (const InputError&) {
-          EXPECT_GT(test::doc_packet_size(profile, height, cpp), 65535u) << to_string(profile) << " " << height << " " << cpp;
+          EXPECT_GT(test::doc_packet_size(profile, height, cpp), 65535u)
+              << to_string(profile) << " " << height << " " << cpp;
           continue;
         }
         ASSERT_EQ(format->lidar_packet_size(), test::doc_packet_size(profile, height, cpp));
@@ -320,8 +320,8 @@ TEST(Packet, DecodesRealHeaderBytes) {
   EXPECT_EQ(fusa.frame_id, 229u);
   EXPECT_EQ(fusa.alert_flags, 0x8c);
   EXPECT_EQ(fusa.prod_sn, 122246000293u);
-  const auto standard = test::decode_header(UdpProfileLidar::kRng19Rfl8Sig16Nir16,
-                                            "01001825368ee6dd5df77f1c980000000500010100");
+  const auto standard =
+      test::decode_header(UdpProfileLidar::kRng19Rfl8Sig16Nir16, "01001825368ee6dd5df77f1c980000000500010100");
   EXPECT_EQ(standard.frame_id, 9496u);
   EXPECT_EQ(standard.init_id, 15109686u);
   EXPECT_EQ(standard.prod_sn, 122406002141u);
@@ -373,8 +373,11 @@ TEST(ImuPacket, NmeaProfileRoundTripsAndChecksItsInput) {
   packet.nmea_timestamp_ns = rng();
   packet.nmea_sentence = "$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A";
   for (uint16_t i = 0; i < 8; ++i) {
-    packet.measurements.push_back({rng(), static_cast<uint16_t>(31 + 32 * i), 1,
-                                   {value(rng), value(rng), value(rng)}, {value(rng), value(rng), value(rng)}});
+    packet.measurements.push_back({rng(),
+                                   static_cast<uint16_t>(31 + 32 * i),
+                                   1,
+                                   {value(rng), value(rng), value(rng)},
+                                   {value(rng), value(rng), value(rng)}});
   }
   for (HeaderType type : {HeaderType::kStandard, HeaderType::kFusa}) {
     std::vector<uint8_t> bytes(nmea_imu_packet_size(8));

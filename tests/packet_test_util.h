@@ -19,9 +19,12 @@
 namespace lidartwin::test {
 
 inline constexpr std::array<UdpProfileLidar, 6> kProfiles{
-    UdpProfileLidar::kLegacy,           UdpProfileLidar::kRng19Rfl8Sig16Nir16,
-    UdpProfileLidar::kRng15Rfl8Nir8,    UdpProfileLidar::kRng19Rfl8Sig16Nir16Dual,
-    UdpProfileLidar::kRng15Rfl8Nir8Dual, UdpProfileLidar::kFusaRng15Rfl8Nir8Dual,
+    UdpProfileLidar::kLegacy,
+    UdpProfileLidar::kRng19Rfl8Sig16Nir16,
+    UdpProfileLidar::kRng15Rfl8Nir8,
+    UdpProfileLidar::kRng19Rfl8Sig16Nir16Dual,
+    UdpProfileLidar::kRng15Rfl8Nir8Dual,
+    UdpProfileLidar::kFusaRng15Rfl8Nir8Dual,
 };
 
 struct ExpectedField {
@@ -209,9 +212,9 @@ inline void expect_round_trip(const PacketFormat& format, UdpProfileLidar profil
     ASSERT_TRUE(result->crc_ok) << what;
   }
   expect_scans_equal(scan, decoded, what);
-  EXPECT_TRUE(std::all_of(decoded.packet_received.begin(), decoded.packet_received.end(),
-                          [](uint64_t n) { return n == 1; }))
-      << what;
+  EXPECT_TRUE(std::all_of(decoded.packet_received.begin(), decoded.packet_received.end(), [](uint64_t n) {
+    return n == 1;
+  })) << what;
 }
 
 }  // namespace lidartwin::test

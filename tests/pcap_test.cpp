@@ -122,7 +122,7 @@ TEST(Pcap, DecodesAddressesAndTimestampsOfTheSample) {
   const auto datagrams = read_pcap(kSamples / "OS-0-32-U1_v2.2.0_1024x10-single-packet.pcap");
   ASSERT_EQ(datagrams.size(), 1u);
   EXPECT_EQ(datagrams[0].src_port, 7502);
-  EXPECT_EQ(datagrams[0].timestamp_ns % 1000, 0u);  // a microsecond file
+  EXPECT_EQ(datagrams[0].timestamp_ns % 1000, 0u);                     // a microsecond file
   EXPECT_GT(datagrams[0].timestamp_ns, 1'000'000'000'000'000'000ULL);  // after 2001
 }
 
@@ -213,9 +213,7 @@ TEST(PcapWriter, RejectsAPayloadLargerThanADatagram) {
   EXPECT_THROW(writer.write(d), InputError);
 }
 
-TEST(PcapWriter, UnwritablePathIsAnInputError) {
-  EXPECT_THROW(PcapWriter("/nonexistent-dir/x.pcap"), InputError);
-}
+TEST(PcapWriter, UnwritablePathIsAnInputError) { EXPECT_THROW(PcapWriter("/nonexistent-dir/x.pcap"), InputError); }
 
 std::string error_of(const std::filesystem::path& path) {
   try {
@@ -233,8 +231,8 @@ TEST(Pcap, MissingFileErrorNamesIt) {
 
 TEST(Pcap, NonPcapFileErrorNamesIt) {
   TempFile file(".pcap");
-  file.write({'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd', '!', '!', '!', '!', '!', '!', '!', '!',
-              '!', '!', '!', '!', '!', '!'});
+  file.write({'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd', '!', '!',
+              '!', '!', '!', '!', '!', '!', '!', '!', '!', '!', '!', '!'});
   const std::string error = error_of(file.path());
   EXPECT_NE(error.find(file.path().string()), std::string::npos) << error;
 }
@@ -332,7 +330,8 @@ std::vector<RawRecord> fragments(const std::vector<uint8_t>& ip_payload, const s
     ip.id = id;
     ip.offset = begin;
     ip.more_fragments = i + 1 < cuts.size();
-    out.push_back({1, static_cast<uint32_t>(i), test::ipv4_frame(ip, {ip_payload.begin() + begin, ip_payload.begin() + end})});
+    out.push_back(
+        {1, static_cast<uint32_t>(i), test::ipv4_frame(ip, {ip_payload.begin() + begin, ip_payload.begin() + end})});
   }
   return out;
 }

@@ -35,7 +35,9 @@ std::string error_of(auto&& f) {
   return "(no InputError)";
 }
 
-Eigen::Quaterniond about_z(double angle) { return Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ())); }
+Eigen::Quaterniond about_z(double angle) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
+}
 
 TEST(Pose, ParsesTumOrderAndNormalizesTheQuaternion) {
   const Pose pose = parse_pose("1 2 3  0 0 2 2");
@@ -123,7 +125,8 @@ TEST(Trajectory, TumRoundTrip) {
 }
 
 TEST(Trajectory, TumSkipsCommentsAndBlankLines) {
-  const auto path = temp_file("comments.tum", "# timestamp tx ty tz qx qy qz qw\n\n0 0 0 0 0 0 0 1\n  1 1 0 0 0 0 0 1\n");
+  const auto path =
+      temp_file("comments.tum", "# timestamp tx ty tz qx qy qz qw\n\n0 0 0 0 0 0 0 1\n  1 1 0 0 0 0 0 1\n");
   EXPECT_EQ(Trajectory::load_tum(path).samples().size(), 2u);
 }
 

@@ -2,8 +2,8 @@
 // and one worker pool. Each answers on its own address and sends its own packets, and an SDK-1.0
 // client of each gets complete scans carrying its sensor's serial number.
 #include <chrono>
-#include <memory>
 #include <filesystem>
+#include <memory>
 #include <thread>
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
 // The sensor state machine without HTTP: validation (never half-applied), "@auto", reinit,
 // subscribers, persistence (protocol doc 2.6, 2.7).
+#include <unistd.h>
 #include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <set>
-#include <unistd.h>
 #include <thread>
 
 #include <gmock/gmock.h>
@@ -40,8 +40,7 @@ class TempDir {
   TempDir() {
     const auto* info = testing::UnitTest::GetInstance()->current_test_info();
     path_ = std::filesystem::temp_directory_path() /
-            ("lidartwin_sensor_test_" + std::string(info->name()) + "_" +
-             std::to_string(::getpid()));
+            ("lidartwin_sensor_test_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }
@@ -72,16 +71,14 @@ TEST(Sensor, StartsWithFirmwareDefaultsActiveAndStagedEqual) {
 TEST(Sensor, MetadataHasAllSevenSectionsAndImuDataFormat) {
   Sensor sensor(test_identity());
   const auto metadata = sensor.metadata();
-  for (const char* section : {"sensor_info", "beam_intrinsics", "imu_intrinsics", "lidar_intrinsics",
-                              "config_params", "lidar_data_format", "calibration_status",
-                              "imu_data_format"}) {
+  for (const char* section : {"sensor_info", "beam_intrinsics", "imu_intrinsics", "lidar_intrinsics", "config_params",
+                              "lidar_data_format", "calibration_status", "imu_data_format"}) {
     EXPECT_TRUE(metadata.contains(section)) << section;
     ASSERT_TRUE(sensor.metadata_section(section).has_value()) << section;
     EXPECT_EQ(*sensor.metadata_section(section), metadata.at(section)) << section;
   }
   EXPECT_FALSE(sensor.metadata_section("no_such_section").has_value());
-  EXPECT_EQ(metadata.at("sensor_info").at("image_rev"),
-            "ousteros-image-prod-bootes-v3.1.0+20240426041747");
+  EXPECT_EQ(metadata.at("sensor_info").at("image_rev"), "ousteros-image-prod-bootes-v3.1.0+20240426041747");
   EXPECT_EQ(metadata.at("sensor_info").at("prod_sn"), "122201000123");
 }
 
@@ -123,11 +120,9 @@ TEST_P(SensorRejects, NamesTheKeyAndChangesNothing) {
 INSTANTIATE_TEST_SUITE_P(
     Config, SensorRejects,
     testing::Values(
-        BadWrite{{{"lidar_mode", "1024x15"}}, "lidar_mode"},
-        BadWrite{{{"lidar_mode", "3000x10"}}, "lidar_mode"},
+        BadWrite{{{"lidar_mode", "1024x15"}}, "lidar_mode"}, BadWrite{{{"lidar_mode", "3000x10"}}, "lidar_mode"},
         BadWrite{{{"lidar_mode", "4096x5"}}, "lidar_mode"},  // not in this product's modes
-        BadWrite{{{"lidar_mode", 1024}}, "lidar_mode"},
-        BadWrite{{{"udp_profile_lidar", "RNG99"}}, "udp_profile_lidar"},
+        BadWrite{{{"lidar_mode", 1024}}, "lidar_mode"}, BadWrite{{{"udp_profile_lidar", "RNG99"}}, "udp_profile_lidar"},
         BadWrite{{{"udp_profile_imu", "FAST"}}, "udp_profile_imu"},
         BadWrite{{{"columns_per_packet", 3}}, "columns_per_packet"},
         BadWrite{{{"columns_per_packet", 128}}, "columns_per_packet"},
@@ -136,15 +131,11 @@ INSTANTIATE_TEST_SUITE_P(
         BadWrite{{{"azimuth_window", {0, 360001}}}, "azimuth_window"},
         BadWrite{{{"azimuth_window", "0,360000"}}, "azimuth_window"},
         BadWrite{{{"signal_multiplier", 1.5}}, "signal_multiplier"},
-        BadWrite{{{"udp_port_lidar", 65536}}, "udp_port_lidar"},
-        BadWrite{{{"udp_port_imu", -1}}, "udp_port_imu"},
+        BadWrite{{{"udp_port_lidar", 65536}}, "udp_port_lidar"}, BadWrite{{{"udp_port_imu", -1}}, "udp_port_imu"},
         BadWrite{{{"udp_port_lidar", "7502"}}, "udp_port_lidar"},
-        BadWrite{{{"udp_port_lidar", 7502.5}}, "udp_port_lidar"},
-        BadWrite{{{"udp_dest", "1.2.3"}}, "udp_dest"},
-        BadWrite{{{"udp_dest", ""}}, "udp_dest"},
-        BadWrite{{{"udp_dest", "::1"}}, "udp_dest"},
-        BadWrite{{{"udp_dest", 17}}, "udp_dest"},
-        BadWrite{{{"udp_dest", nullptr}}, "udp_dest"},
+        BadWrite{{{"udp_port_lidar", 7502.5}}, "udp_port_lidar"}, BadWrite{{{"udp_dest", "1.2.3"}}, "udp_dest"},
+        BadWrite{{{"udp_dest", ""}}, "udp_dest"}, BadWrite{{{"udp_dest", "::1"}}, "udp_dest"},
+        BadWrite{{{"udp_dest", 17}}, "udp_dest"}, BadWrite{{{"udp_dest", nullptr}}, "udp_dest"},
         BadWrite{{{"udp_dest", "no-such-host.invalid"}}, "udp_dest"},
         BadWrite{{{"operating_mode", "OFF"}}, "operating_mode"},
         BadWrite{{{"timestamp_mode", "TIME_FROM_ROS_TIME"}}, "timestamp_mode"},
@@ -159,8 +150,7 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Sensor, ErrorNamesEveryBadKey) {
   Sensor sensor(test_identity());
   try {
-    sensor.write_staged({{"lidar_mode", "9x9"}, {"udp_port_imu", "x"}, {"fine_unknown", 1}},
-                        "127.0.0.1");
+    sensor.write_staged({{"lidar_mode", "9x9"}, {"udp_port_imu", "x"}, {"fine_unknown", 1}}, "127.0.0.1");
     FAIL();
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("lidar_mode"));
@@ -331,8 +321,7 @@ TEST(Sensor, PersistedConfigAndUserDataAreRestoredOnTheNextStart) {
     sensor.reinit();
   }
   EXPECT_TRUE(std::filesystem::exists(options.state_file));
-  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()),
-                          std::filesystem::directory_iterator()),
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()),
             1);  // no temporary file left behind
   Sensor restored(test_identity(), options);
   EXPECT_EQ(restored.active_config().at("lidar_mode"), "2048x10");
@@ -362,8 +351,7 @@ TEST(Sensor, BadStartInputsNameTheirSource) {
   std::ofstream(options.state_file) << "{ not json";
   EXPECT_THAT([&] { Sensor sensor(test_identity(), options); },
               testing::ThrowsMessage<InputError>(HasSubstr("state.json")));
-  std::ofstream(options.state_file, std::ios::trunc)
-      << R"({"lidartwin_state": 1, "config": {"lidar_mode": "77x7"}})";
+  std::ofstream(options.state_file, std::ios::trunc) << R"({"lidartwin_state": 1, "config": {"lidar_mode": "77x7"}})";
   EXPECT_THAT([&] { Sensor sensor(test_identity(), options); },
               testing::ThrowsMessage<InputError>(HasSubstr("lidar_mode")));
 
@@ -373,8 +361,7 @@ TEST(Sensor, BadStartInputsNameTheirSource) {
               testing::ThrowsMessage<InputError>(HasSubstr("udp_dest")));
   auto identity = test_identity();
   identity.prod_sn = "OS123";
-  EXPECT_THAT([&] { Sensor sensor(identity); },
-              testing::ThrowsMessage<InputError>(HasSubstr("prod_sn")));
+  EXPECT_THAT([&] { Sensor sensor(identity); }, testing::ThrowsMessage<InputError>(HasSubstr("prod_sn")));
 }
 
 TEST(Sensor, UserDataDefaultsToEmptyAndCanBeDeleted) {

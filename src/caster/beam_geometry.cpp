@@ -75,7 +75,8 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
   packets_per_column_ = (rows_ + RayPacket16::kLanes - 1) / RayPacket16::kLanes;
   packets_.reserve(static_cast<size_t>(columns_ * packets_per_column_));
   for (int m = 0; m < columns_; ++m) {
-    for (int first = 0; first < rows_; first += RayPacket16::kLanes) packets_.push_back(make_packet(&ray(0, m), first, rows_));
+    for (int first = 0; first < rows_; first += RayPacket16::kLanes)
+      packets_.push_back(make_packet(&ray(0, m), first, rows_));
   }
 }
 

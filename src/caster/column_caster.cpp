@@ -133,7 +133,8 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
     alignas(64) int valid[kLanes];
     fill_packet(rays[k], world, max_range_m_, packet, valid);
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    read_hits(packet, optics_.data(), out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
+    read_hits(packet, optics_.data(),
+              out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
   }
   mark_vertical_edges(out);
 }

@@ -1,8 +1,8 @@
 #pragma once
 // Each subcommand lives in its own file and registers itself here, so adding one edits no list.
 #include <functional>
-#include <utility>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -20,9 +20,7 @@ struct Command {
 std::vector<Command>& commands();
 
 struct RegisterCommand {
-  RegisterCommand(std::string name, CommandSetup setup) {
-    commands().push_back({std::move(name), std::move(setup)});
-  }
+  RegisterCommand(std::string name, CommandSetup setup) { commands().push_back({std::move(name), std::move(setup)}); }
 };
 
 }  // namespace lidartwin::cli

@@ -28,8 +28,8 @@ CLI::Validator udp_profile_validator() {
 CLI::Validator serial_number_validator() {
   return CLI::Validator(
       [](std::string& value) -> std::string {
-        const bool digits = !value.empty() && value.size() <= 12 &&
-                            value.find_first_not_of("0123456789") == std::string::npos;
+        const bool digits =
+            !value.empty() && value.size() <= 12 && value.find_first_not_of("0123456789") == std::string::npos;
         return digits ? "" : "expected 1 to 12 decimal digits, e.g. 122201000011";
       },
       "DIGITS");

@@ -55,7 +55,8 @@ void tally_frame(const BatchedFrame& batched, FrameTally& frame) {
     frame.valid_columns[static_cast<size_t>(m)] = true;
     const auto range = scan.column(ChannelField::kRange, m);
     frame.pixels += range.size();
-    frame.returns += static_cast<uint64_t>(std::count_if(range.begin(), range.end(), [](uint32_t r) { return r != 0; }));
+    frame.returns +=
+        static_cast<uint64_t>(std::count_if(range.begin(), range.end(), [](uint32_t r) { return r != 0; }));
   }
 }
 

@@ -23,19 +23,19 @@ struct FrameTally {
 };
 
 struct LidarSummary {
-  uint16_t port = 0;             // where lidar packets were taken from
+  uint16_t port = 0;               // where lidar packets were taken from
   bool port_from_metadata = true;  // false: the metadata's port had none, any port was used
   size_t packet_size = 0;
-  size_t packets = 0;            // decoded lidar packets of this sensor
-  size_t foreign = 0;            // right size, but prod_sn/init_id of another sensor or session
+  size_t packets = 0;  // decoded lidar packets of this sensor
+  size_t foreign = 0;  // right size, but prod_sn/init_id of another sensor or session
   size_t malformed = 0;
-  size_t late = 0;               // for a frame already assembled (the SDK drops them)
+  size_t late = 0;  // for a frame already assembled (the SDK drops them)
   std::string first_error;
-  size_t crc_ok = 0;             // footers with a matching CRC-64
+  size_t crc_ok = 0;  // footers with a matching CRC-64
   size_t crc_failed = 0;
-  size_t without_crc = 0;        // FW 2 marker or zero footers (protocol doc 4.5)
+  size_t without_crc = 0;                 // FW 2 marker or zero footers (protocol doc 4.5)
   std::map<uint32_t, FrameTally> frames;  // by frame_id
-  size_t imu_packets = 0;        // on udp_port_imu, of the IMU packet size
+  size_t imu_packets = 0;                 // on udp_port_imu, of the IMU packet size
 };
 
 // Requires metadata.lidar_enabled(). Throws InputError if the format cannot be decoded.

@@ -20,10 +20,11 @@ struct PcapInfoFlags {
 
 void print_datagrams(const std::string& capture, const std::vector<UdpDatagram>& datagrams, const PcapStats& stats) {
   std::cout << "capture: " << capture << "\n"
-            << "records: " << stats.records << " (IPv4 fragments: " << stats.fragments
-            << ", not UDP: " << stats.not_udp << ", cut by snaplen: " << stats.truncated_frames << ")\n"
-            << "udp datagrams: " << datagrams.size() << " (incomplete fragment sets dropped: "
-            << stats.incomplete_datagrams << ", conflicting: " << stats.conflicting_datagrams << ")\n"
+            << "records: " << stats.records << " (IPv4 fragments: " << stats.fragments << ", not UDP: " << stats.not_udp
+            << ", cut by snaplen: " << stats.truncated_frames << ")\n"
+            << "udp datagrams: " << datagrams.size()
+            << " (incomplete fragment sets dropped: " << stats.incomplete_datagrams
+            << ", conflicting: " << stats.conflicting_datagrams << ")\n"
             << "datagrams by destination port and size:\n";
   for (const auto& [port_size, count] : count_datagrams(datagrams)) {
     std::printf("  port %5u  %6zu bytes  x %zu\n", port_size.first, port_size.second, count);
@@ -33,14 +34,15 @@ void print_datagrams(const std::string& capture, const std::vector<UdpDatagram>&
 void print_metadata(const std::string& path, const Metadata& m) {
   const LidarDataFormat& f = m.format;
   std::cout << "metadata: " << path << "\n"
-            << "sensor: " << (m.sensor_info.prod_line.empty() ? "(unnamed)" : m.sensor_info.prod_line)
-            << ", sn " << m.sensor_info.prod_sn << ", fw " << m.sensor_info.build_rev << ", init_id "
+            << "sensor: " << (m.sensor_info.prod_line.empty() ? "(unnamed)" : m.sensor_info.prod_line) << ", sn "
+            << m.sensor_info.prod_sn << ", fw " << m.sensor_info.build_rev << ", init_id "
             << m.sensor_info.initialization_id << "\n"
             << "mode: " << f.columns_per_frame << "x" << f.fps << ", " << f.pixels_per_column << " beams, "
             << f.columns_per_packet << " columns per packet, column window [" << f.column_window[0] << ", "
             << f.column_window[1] << "]\n"
-            << "profile: " << (m.undecodable_lidar_profile.empty() ? std::string(to_string(f.udp_profile_lidar))
-                                                                 : m.undecodable_lidar_profile)
+            << "profile: "
+            << (m.undecodable_lidar_profile.empty() ? std::string(to_string(f.udp_profile_lidar))
+                                                    : m.undecodable_lidar_profile)
             << " (" << to_string(f.header_type) << " header), imu " << to_string(f.udp_profile_imu) << "\n";
 }
 
@@ -67,9 +69,11 @@ void print_frames(const LidarSummary& s) {
 void print_lidar(const Metadata& m, const LidarSummary& s) {
   std::cout << "lidar packets: " << s.packets << " (" << s.packet_size << " bytes on port " << s.port
             << (s.port_from_metadata ? "" : ", not the metadata's udp_port_lidar") << ")\n";
-  if (s.foreign) std::cout << "other sensor or session (prod_sn/init_id differ): " << s.foreign << " packets, skipped\n";
+  if (s.foreign)
+    std::cout << "other sensor or session (prod_sn/init_id differ): " << s.foreign << " packets, skipped\n";
   if (s.malformed) std::cout << "malformed lidar packets: " << s.malformed << " (first: " << s.first_error << ")\n";
-  if (s.late) std::cout << "late lidar packets (their frame already assembled): " << s.late << ", skipped as the SDK does\n";
+  if (s.late)
+    std::cout << "late lidar packets (their frame already assembled): " << s.late << ", skipped as the SDK does\n";
   if (m.format.udp_profile_lidar != UdpProfileLidar::kLegacy) {
     std::cout << "crc failures: " << s.crc_failed << " (valid crc: " << s.crc_ok << ", no crc: " << s.without_crc
               << ")\n";
@@ -97,8 +101,9 @@ int run_pcap_info(const PcapInfoFlags& flags) {
 
 void setup_pcap_info(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<PcapInfoFlags>();
-  CLI::App* sub = app.add_subcommand("pcap-info", "Summarize a capture: datagrams by port and size; with metadata, "
-                                                  "lidar packets, frames, valid pixels and CRCs");
+  CLI::App* sub = app.add_subcommand("pcap-info",
+                                     "Summarize a capture: datagrams by port and size; with metadata, "
+                                     "lidar packets, frames, valid pixels and CRCs");
   sub->add_option("capture", flags->capture, "pcap file")->required();
   sub->add_option("--metadata", flags->metadata, "sensor metadata JSON (nested or legacy flat)");
   sub->callback([&run, flags] { run = [flags] { return run_pcap_info(*flags); }; });

@@ -12,13 +12,13 @@
 
 #include "cli/command.h"
 #include "cli/format_validators.h"
-#include "cli/recorder.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/pose/pose_source.h"
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/random/counter_rng.h"
+#include "lidartwin/record/recorder.h"
 
 namespace lidartwin::cli {
 namespace {
@@ -104,7 +104,8 @@ class ProgressBar {
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     const int width = 30;
     const int filled = done * width / total_;
-    std::fprintf(stderr, "\r[%s%s] %d/%d frames, %.1fx real time", std::string(static_cast<size_t>(filled), '=').c_str(),
+    std::fprintf(stderr, "\r[%s%s] %d/%d frames, %.1fx real time",
+                 std::string(static_cast<size_t>(filled), '=').c_str(),
                  std::string(static_cast<size_t>(width - filled), ' ').c_str(), done, total_,
                  elapsed > 0 ? done / (fps_ * elapsed) : 0.0);
     if (done == total_) std::fprintf(stderr, "\n");
@@ -122,8 +123,8 @@ int run_record(const RecordFlags& flags) {
   const Metadata metadata = make_record_metadata(flags, profile);
   const std::unique_ptr<PoseSource> poses = load_poses(flags);
   const Scene scene = Scene::load(flags.scene);
-  EffectChain chain =
-      flags.ideal ? ideal_chain(profile) : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  EffectChain chain = flags.ideal ? ideal_chain(profile)
+                                  : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   const ProgressBar bar(flags.frames, metadata.format.fps);
   record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
           flags.out},
@@ -136,19 +137,30 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
   CLI::App* sub = app.add_subcommand("record", "Render a capture offline: DIR/capture.pcap, metadata.json, poses.tum");
   sub->add_option("--profile", flags->profile, "sensor profile name (e.g. os1-64) or .json path")->required();
   sub->add_option("--scene", flags->scene, "glTF scene (.glb/.gltf)")->required()->check(CLI::ExistingFile);
-  auto* trajectory = sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (loops if shorter than the capture)")
-                         ->check(CLI::ExistingFile);
-  sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\" (world frame, Z up)")->excludes(trajectory);
-  sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")->check(lidar_mode_validator())->capture_default_str();
-  sub->add_option("--udp-profile", flags->udp_profile, "udp_profile_lidar")->check(udp_profile_validator())->capture_default_str();
-  sub->add_option("--frames", flags->frames, "frames to record")->check(CLI::Range(1, 10'000'000))->capture_default_str();
+  auto* trajectory =
+      sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (loops if shorter than the capture)")
+          ->check(CLI::ExistingFile);
+  sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\" (world frame, Z up)")
+      ->excludes(trajectory);
+  sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")
+      ->check(lidar_mode_validator())
+      ->capture_default_str();
+  sub->add_option("--udp-profile", flags->udp_profile, "udp_profile_lidar")
+      ->check(udp_profile_validator())
+      ->capture_default_str();
+  sub->add_option("--frames", flags->frames, "frames to record")
+      ->check(CLI::Range(1, 10'000'000))
+      ->capture_default_str();
   sub->add_option("--seed", flags->seed, "noise seed (also sets initialization_id)")->capture_default_str();
   sub->add_option("--out", flags->out, "output directory (created)")->required();
-  sub->add_option("--threads", flags->threads, "render threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
+  sub->add_option("--threads", flags->threads, "render threads (0 = all cores)")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
   sub->add_option("--columns-per-packet", flags->columns_per_packet, "columns per lidar packet")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}))
       ->capture_default_str();
-  sub->add_flag("--ideal", flags->ideal, "no noise or dropout: ideal ranges on the wire's step, within the profile's range");
+  sub->add_flag("--ideal", flags->ideal,
+                "no noise or dropout: ideal ranges on the wire's step, within the profile's range");
   sub->callback([&run, flags] { run = [flags] { return run_record(*flags); }; });
 }
 

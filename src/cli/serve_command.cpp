@@ -11,9 +11,9 @@
 #include <sched.h>
 #include <sys/prctl.h>
 
-#include <asio.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <asio.hpp>
 
 #include "cli/command.h"
 #include "cli/format_validators.h"
@@ -133,7 +133,8 @@ int serve(const ServeFlags& flags) {
   spdlog::info("serve: sensor {} sn {} answering on http://{}:{}/api/v1/", sensor->sensor().identity().prod_line,
                sensor->sensor().identity().prod_sn, flags.address, sensor->http().port());
   raise_send_clock_priority();
-  spdlog::info("serve: send clock runs {}", realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
+  spdlog::info("serve: send clock runs {}",
+               realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
   return run_daemon(io, *sensor);
 }
 
@@ -145,7 +146,8 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   auto* trajectory = sub->add_option("--trajectory", flags->trajectory,
                                      "TUM trajectory (default scenes/plant_inspection.tum with the default scene)");
   sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\"")->excludes(trajectory);
-  sub->add_option("--address", flags->address, "the sensor's IPv4 address (HTTP and UDP source)")->capture_default_str();
+  sub->add_option("--address", flags->address, "the sensor's IPv4 address (HTTP and UDP source)")
+      ->capture_default_str();
   sub->add_option("--http-port", flags->http_port, "HTTP port (80 as on a real sensor; 0 = any)")
       ->check(CLI::Range(0, 65535))
       ->capture_default_str();
@@ -154,7 +156,8 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
                   "prod_sn, 1 to 12 digits (default 122201 + digits from --address; give each sensor of a "
                   "rig its own when they all bind 0.0.0.0)")
       ->check(serial_number_validator());
-  sub->add_option("--record", flags->record_dir, "also write every sent packet to DIR/capture.pcap + DIR/metadata.json");
+  sub->add_option("--record", flags->record_dir,
+                  "also write every sent packet to DIR/capture.pcap + DIR/metadata.json");
   sub->add_option("--lidar-mode", flags->lidar_mode, "initial lidar_mode, e.g. 1024x10")->check(lidar_mode_validator());
   sub->add_option("--udp-profile", flags->udp_profile, "initial udp_profile_lidar")->check(udp_profile_validator());
   sub->add_option("--state-file", flags->state_file, "where persisted config and user data live");

@@ -2,8 +2,8 @@
 
 #include <cstdlib>
 
-#include <asio/ip/address_v4.hpp>
 #include <spdlog/spdlog.h>
+#include <asio/ip/address_v4.hpp>
 
 #include "lidartwin/error.h"
 

@@ -49,8 +49,7 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
     return 1.0f / (1.0f + std::exp(-x));
   }
 
-  void simulate(std::span<const IdealReturn>, const ColumnContext& context,
-                MeasuredColumn& measured) const override {
+  void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
     for (uint32_t beam = 0; beam < measured.size(); ++beam) {
       if (measured.range_m[beam] == 0.0f) continue;

@@ -33,7 +33,8 @@ void check_number(double value, std::string_view where, Bounds bounds) {
 
 double read_number(const nlohmann::json& value, std::string_view where, Bounds bounds) {
   // Bounds may be infinite (an unbounded parameter), which json_reader::Range does not take.
-  if (!value.is_number()) location_of(where).fail_expected("a number in " + format_range(bounds.lower, bounds.upper), value);
+  if (!value.is_number())
+    location_of(where).fail_expected("a number in " + format_range(bounds.lower, bounds.upper), value);
   const double number = value.get<double>();
   check_number(number, where, bounds);
   return number;

@@ -40,8 +40,7 @@ class RangeQuantization final : public TabledEffect<RangeQuantization, Quantizat
     return std::round(static_cast<double>(context.range_step_m) * 1e9) * 1e-9;
   }
 
-  void simulate(std::span<const IdealReturn>, const ColumnContext& context,
-                MeasuredColumn& measured) const override {
+  void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const double delta = step(context);
     if (delta <= 0.0) return;
     // The rounding in float, four lanes to a vector: r / step is exact to 0.03 steps even at

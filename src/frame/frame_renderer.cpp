@@ -45,9 +45,9 @@ struct FrameRenderer::Impl {
     context.signal_gain = setup.signal_gain;
     const auto rows = static_cast<size_t>(setup.format.pixels_per_column);
     const auto block = static_cast<size_t>(setup.format.columns_per_packet);
-    scratch.assign(static_cast<size_t>(pool.size()),
-                   Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)),
-                           MeasuredColumn(rows)});
+    scratch.assign(
+        static_cast<size_t>(pool.size()),
+        Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)), MeasuredColumn(rows)});
   }
 
   // Columns [begin, end) of one packet. All of them are cast before any goes through the effect

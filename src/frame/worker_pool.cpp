@@ -15,7 +15,6 @@ void run_at_normal_priority(int nice) {
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);  // per thread on Linux
 }
 
-
 WorkerPool::WorkerPool(int threads, int nice) {
   const int total = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   for (int worker = 1; worker < total; ++worker) {

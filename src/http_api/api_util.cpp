@@ -28,9 +28,8 @@ nlohmann::json parse_json(const std::string& text, const std::string& what) {
 }
 
 nlohmann::json parse_json_body(const ApiRequest& request, const nlohmann::json& when_empty) {
-  const bool blank = std::all_of(request.body.begin(), request.body.end(), [](char c) {
-    return std::isspace(static_cast<unsigned char>(c)) != 0;
-  });
+  const bool blank = std::all_of(request.body.begin(), request.body.end(),
+                                 [](char c) { return std::isspace(static_cast<unsigned char>(c)) != 0; });
   if (blank) return when_empty;
   return parse_json(request.body, "request body");
 }
@@ -49,8 +48,7 @@ bool query_flag(const ApiRequest& request, std::string_view key, bool default_va
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (lower == "true") return true;
   if (lower == "false") return false;
-  throw HttpError(400, "query parameter " + std::string(key) + ": must be true or false, got \"" +
-                           *value + "\"");
+  throw HttpError(400, "query parameter " + std::string(key) + ": must be true or false, got \"" + *value + "\"");
 }
 
 }  // namespace lidartwin

@@ -23,8 +23,8 @@ std::string binary_path() {
 
 std::string privileged_port_help(int port) {
   return " Ports below 1024 need privileges; any one of these works: run lidartwin as root; "
-         "`sudo setcap cap_net_bind_service=+ep " + binary_path() +
-         "`; `sudo sysctl net.ipv4.ip_unprivileged_port_start=" + std::to_string(port) +
+         "`sudo setcap cap_net_bind_service=+ep " +
+         binary_path() + "`; `sudo sysctl net.ipv4.ip_unprivileged_port_start=" + std::to_string(port) +
          "`; or serve on a high port with `--http-port 8080` and point the clients at it with "
          "`http_proxy=http://127.0.0.1:8080` (libcurl and python-requests honour it; "
          "protocol doc 2.1).";
@@ -56,16 +56,16 @@ std::string describe_bind_error(const std::string& address, int port, int error_
   const std::string where = "cannot serve HTTP on " + address + ":" + std::to_string(port) + ": ";
   switch (error_number) {
     case EACCES:
-    case EPERM:
-      return where + "permission denied." + (port < 1024 ? privileged_port_help(port) : "");
+    case EPERM: return where + "permission denied." + (port < 1024 ? privileged_port_help(port) : "");
     case EADDRINUSE:
-      return where + "the address is in use (another lidartwin or web server?). Stop it, or give "
-                     "this sensor its own address (127.0.0.2, ...) or another --http-port.";
+      return where +
+             "the address is in use (another lidartwin or web server?). Stop it, or give "
+             "this sensor its own address (127.0.0.2, ...) or another --http-port.";
     case EADDRNOTAVAIL:
-      return where + "no such local address. Use an address of this host; on Linux every "
-                     "127.x.y.z is local, so each virtual sensor can have its own.";
-    default:
-      return where + (error_number ? std::strerror(error_number) : "bind failed") + ".";
+      return where +
+             "no such local address. Use an address of this host; on Linux every "
+             "127.x.y.z is local, so each virtual sensor can have its own.";
+    default: return where + (error_number ? std::strerror(error_number) : "bind failed") + ".";
   }
 }
 

@@ -19,8 +19,7 @@ std::pair<std::string, std::string> split_args(const ApiRequest& request) {
 ApiResponse get_config_param(Sensor& sensor, const ApiRequest& request) {
   const auto [which, key] = split_args(request);
   if (which != "active" && which != "staged") {
-    throw HttpError(400, "query parameter args: must be \"active\" or \"staged\", got \"" +
-                             which + "\"");
+    throw HttpError(400, "query parameter args: must be \"active\" or \"staged\", got \"" + which + "\"");
   }
   const auto config = which == "active" ? sensor.active_config() : sensor.staged_config();
   if (key.empty()) return json_response(config);

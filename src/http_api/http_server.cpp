@@ -37,8 +37,7 @@ void write_response(const ApiResponse& api, httplib::Response& response) {
 // Reads the body, keeping at most `limit` bytes. A longer body is read to its end and dropped, so
 // the connection stays usable; `too_large` tells. (httplib's own limit covers Content-Length
 // bodies only, not chunked ones.)
-bool read_body(const httplib::ContentReader& reader, std::size_t limit, std::string& body,
-               bool& too_large) {
+bool read_body(const httplib::ContentReader& reader, std::size_t limit, std::string& body, bool& too_large) {
   return reader([&](const char* data, std::size_t size) {
     if (too_large || body.size() + size > limit) {
       too_large = true;
@@ -69,8 +68,7 @@ httplib::Server::HandlerResponse fill_error_body(httplib::Response& response, st
 }  // namespace
 
 struct HttpServer::Impl {
-  Impl(Sensor& sensor, HttpServerOptions server_options)
-      : options(std::move(server_options)), handler(sensor) {}
+  Impl(Sensor& sensor, HttpServerOptions server_options) : options(std::move(server_options)), handler(sensor) {}
 
   void configure();
   void configure_connections();
@@ -86,13 +84,11 @@ struct HttpServer::Impl {
   int port = -1;
 };
 
-void HttpServer::Impl::handle(const httplib::Request& request, httplib::Response& response,
-                              std::string body) {
+void HttpServer::Impl::handle(const httplib::Request& request, httplib::Response& response, std::string body) {
   write_response(handler.handle(to_api_request(request, std::move(body))), response);
 }
 
-void HttpServer::Impl::handle_with_body(const httplib::Request& request,
-                                        httplib::Response& response,
+void HttpServer::Impl::handle_with_body(const httplib::Request& request, httplib::Response& response,
                                         const httplib::ContentReader& reader) {
   std::string body;
   bool too_large = false;
@@ -111,23 +107,20 @@ void HttpServer::Impl::configure() {
   // Catch-all patterns: RequestHandler routes, so 404/405 and absolute-form paths are ours.
   const std::string any = ".*";
   auto plain = [this](const httplib::Request& rq, httplib::Response& rs) { handle(rq, rs, rq.body); };
-  auto with_body = [this](const httplib::Request& rq, httplib::Response& rs,
-                          const httplib::ContentReader& reader) { handle_with_body(rq, rs, reader); };
+  auto with_body = [this](const httplib::Request& rq, httplib::Response& rs, const httplib::ContentReader& reader) {
+    handle_with_body(rq, rs, reader);
+  };
   server.Get(any, plain).Delete(any, plain).Options(any, plain).Patch(any, plain);
   server.Post(any, with_body).Put(any, with_body);
 
   const std::size_t limit = options.max_body_bytes;
   server.set_error_handler(httplib::Server::HandlerWithResponse(
-      [limit](const httplib::Request&, httplib::Response& response) {
-        return fill_error_body(response, limit);
-      }));
-  server.set_exception_handler([](const httplib::Request&, httplib::Response& response,
-                                  std::exception_ptr) {
+      [limit](const httplib::Request&, httplib::Response& response) { return fill_error_body(response, limit); }));
+  server.set_exception_handler([](const httplib::Request&, httplib::Response& response, std::exception_ptr) {
     write_response(error_response(500, "internal error"), response);
   });
   server.set_logger([](const httplib::Request& request, const httplib::Response& response) {
-    spdlog::debug("HTTP {} {} {} -> {}", request.remote_addr, request.method, request.target,
-                  response.status);
+    spdlog::debug("HTTP {} {} {} -> {}", request.remote_addr, request.method, request.target, response.status);
   });
   configure_connections();
 }

@@ -10,14 +10,10 @@ namespace lidartwin {
 namespace {
 
 // Polled every second while INITIALIZING and used for FW detection (protocol doc 2.2, 2.4 (b)).
-ApiResponse get_sensor_info(Sensor& sensor, const ApiRequest&) {
-  return json_response(sensor.sensor_info());
-}
+ApiResponse get_sensor_info(Sensor& sensor, const ApiRequest&) { return json_response(sensor.sensor_info()); }
 
 // All 7 sections + imu_data_format (protocol doc 1.7, 3.1).
-ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) {
-  return json_response(sensor.metadata());
-}
+ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) { return json_response(sensor.metadata()); }
 
 // Any section by name, as the FW and the SDK's replay server do (protocol doc 2.3).
 ApiResponse get_metadata_section(Sensor& sensor, const ApiRequest& request) {
@@ -25,8 +21,8 @@ ApiResponse get_metadata_section(Sensor& sensor, const ApiRequest& request) {
   if (auto section = sensor.metadata_section(name)) return json_response(*section);
   const nlohmann::json document = sensor.metadata();
   const auto& sections = document.get_ref<const nlohmann::json::object_t&>();
-  throw HttpError(404, fmt::format("no metadata section \"{}\"; sections: {}", name,
-                                   fmt::join(std::views::keys(sections), ", ")));
+  throw HttpError(
+      404, fmt::format("no metadata section \"{}\"; sections: {}", name, fmt::join(std::views::keys(sections), ", ")));
 }
 
 // SDK <= 0.15 detects the FW from this (protocol doc 2.2).

@@ -44,8 +44,7 @@ ApiResponse get_telemetry(Sensor& sensor, const ApiRequest&) {
 }
 
 ApiResponse get_time_system(Sensor& sensor, const ApiRequest&) {
-  return json_response({{"monotonic", seconds_since_start(sensor)},
-                        {"realtime", seconds_since_epoch()}});
+  return json_response({{"monotonic", seconds_since_start(sensor)}, {"realtime", seconds_since_epoch()}});
 }
 
 // A reduced FW 2.x/3.x shape: the time source follows the active timestamp_mode.
@@ -88,8 +87,7 @@ ApiResponse get_network(Sensor& sensor, const ApiRequest& request) {
       {"duplex", "full"},
       {"ethaddr", ethaddr},
       {"hostname", "os-" + sn},
-      {"ipv4",
-       {{"addr", request.local_ip + "/8"}, {"link_local", "169.254.0.1/16"}, {"override", nullptr}}},
+      {"ipv4", {{"addr", request.local_ip + "/8"}, {"link_local", "169.254.0.1/16"}, {"override", nullptr}}},
       {"ipv6", {{"link_local", "fe80::be0f:a7ff:fe00:1/64"}}},
       {"speed", 1000},
       {"speed_override", nullptr},
@@ -106,14 +104,10 @@ ApiResponse zone_monitor(Sensor&, const ApiRequest&) {
 
 std::vector<Route> misc_routes() {
   return {
-      {"GET", "sensor/telemetry", false, get_telemetry},
-      {"GET", "time/system", false, get_time_system},
-      {"GET", "time/sensor", false, get_time_sensor},
-      {"GET", "time/ptp", false, get_time_ptp},
-      {"GET", "sensor/alerts", false, get_alerts},
-      {"GET", "system/network", false, get_network},
-      {"*", "zone_monitor", false, zone_monitor},
-      {"*", "zone_monitor", true, zone_monitor},
+      {"GET", "sensor/telemetry", false, get_telemetry}, {"GET", "time/system", false, get_time_system},
+      {"GET", "time/sensor", false, get_time_sensor},    {"GET", "time/ptp", false, get_time_ptp},
+      {"GET", "sensor/alerts", false, get_alerts},       {"GET", "system/network", false, get_network},
+      {"*", "zone_monitor", false, zone_monitor},        {"*", "zone_monitor", true, zone_monitor},
   };
 }
 

@@ -19,8 +19,7 @@ constexpr std::string_view kApiPrefix = "/api/v1/";
 const std::vector<Route>& all_routes() {
   static const std::vector<Route> routes = [] {
     std::vector<Route> all;
-    for (auto part : {metadata_routes(), config_routes(), cmd_routes(), user_data_routes(),
-                      misc_routes()}) {
+    for (auto part : {metadata_routes(), config_routes(), cmd_routes(), user_data_routes(), misc_routes()}) {
       all.insert(all.end(), part.begin(), part.end());
     }
     return all;

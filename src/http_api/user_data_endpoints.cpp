@@ -22,15 +22,16 @@ ApiResponse put_user_data(Sensor& sensor, const ApiRequest& request) {
   if (const auto text = query_value(request, "policy")) {
     const auto parsed = user_data_policy_from_string(*text);
     if (!parsed) {
-      throw HttpError(400, "query parameter policy: must be \"keep_on_config_delete\" or "
-                           "\"clear_on_config_delete\", got \"" + *text + "\"");
+      throw HttpError(400,
+                      "query parameter policy: must be \"keep_on_config_delete\" or "
+                      "\"clear_on_config_delete\", got \"" +
+                          *text + "\"");
     }
     policy = *parsed;
   }
   const auto body = parse_json_body(request, nlohmann::json());
   if (!body.is_string()) {
-    throw HttpError(400, std::string("user data: the body must be a JSON string, got ") +
-                             body.type_name());
+    throw HttpError(400, std::string("user data: the body must be a JSON string, got ") + body.type_name());
   }
   sensor.set_user_data(body.get<std::string>(), policy);
   return json_response(with_policy(sensor.user_data()));

@@ -17,8 +17,8 @@ std::vector<double> read_angles(const SectionedDocument& document, const JsonRea
 
 }  // namespace
 
-BeamIntrinsics parse_beam_intrinsics(const SectionedDocument& document, const JsonReader& reader,
-                                     int pixels_per_column, const std::string& prod_line) {
+BeamIntrinsics parse_beam_intrinsics(const SectionedDocument& document, const JsonReader& reader, int pixels_per_column,
+                                     const std::string& prod_line) {
   BeamIntrinsics beams;
   beams.altitude_deg = read_angles(document, reader, "beam_altitude_angles", pixels_per_column);
   beams.azimuth_deg = read_angles(document, reader, "beam_azimuth_angles", pixels_per_column);
@@ -29,8 +29,10 @@ BeamIntrinsics parse_beam_intrinsics(const SectionedDocument& document, const Js
   // Default: identity with the beam origin offset along x (the SDK's default_beam_to_lidar).
   beams.beam_to_lidar = kIdentity4;
   beams.beam_to_lidar[3] = beams.lidar_origin_to_beam_origin_mm;
-  if (auto node = document.find("beam_intrinsics", "beam_to_lidar_transform")) beams.beam_to_lidar = reader.as_mat4(*node);
-  if (auto node = document.find("imu_intrinsics", "imu_to_sensor_transform")) beams.imu_to_sensor = reader.as_mat4(*node);
+  if (auto node = document.find("beam_intrinsics", "beam_to_lidar_transform"))
+    beams.beam_to_lidar = reader.as_mat4(*node);
+  if (auto node = document.find("imu_intrinsics", "imu_to_sensor_transform"))
+    beams.imu_to_sensor = reader.as_mat4(*node);
   if (auto node = document.find("lidar_intrinsics", "lidar_to_sensor_transform")) {
     beams.lidar_to_sensor = reader.as_mat4(*node);
   }

@@ -46,8 +46,8 @@ std::vector<int> JsonReader::as_integers(const Node& node) const {
   values.reserve(node->size());
   for (size_t i = 0; i < node->size(); ++i) {
     const Node element{&(*node)[i], node.path + "/" + std::to_string(i)};
-    values.push_back(static_cast<int>(as_integer(element, std::numeric_limits<int>::min(),
-                                                 std::numeric_limits<int>::max())));
+    values.push_back(
+        static_cast<int>(as_integer(element, std::numeric_limits<int>::min(), std::numeric_limits<int>::max())));
   }
   return values;
 }

@@ -71,18 +71,20 @@ void read_imu_counts(const JsonReader& reader, const nlohmann::json& config, Lid
                                      : kDefaultImuPacketsPerFrame;
   const int per_frame = format.fps * format.imu_packets_per_frame;
   if (kImuSampleRateHz % per_frame != 0) {
-    reader.fail("/imu_packets_per_frame", "a divisor of " + std::to_string(kImuSampleRateHz / format.fps) +
-                                              " (640 Hz IMU samples per frame)",
+    reader.fail("/imu_packets_per_frame",
+                "a divisor of " + std::to_string(kImuSampleRateHz / format.fps) + " (640 Hz IMU samples per frame)",
                 std::to_string(format.imu_packets_per_frame));
   }
   format.imu_measurements_per_packet = kImuSampleRateHz / per_frame;
 }
 
-LidarDataFormat format_from_config(const JsonReader& reader, const nlohmann::json& config, const BeamIntrinsics& beams) {
+LidarDataFormat format_from_config(const JsonReader& reader, const nlohmann::json& config,
+                                   const BeamIntrinsics& beams) {
   LidarDataFormat format;
   const auto mode = parse_lidar_mode(string_at(reader, config, "lidar_mode"));
   if (!mode) {
-    reader.fail("/lidar_mode", "one of 512x10, 512x20, 1024x10, 1024x20, 2048x10, 4096x5", describe(config["lidar_mode"]));
+    reader.fail("/lidar_mode", "one of 512x10, 512x20, 1024x10, 1024x20, 2048x10, 4096x5",
+                describe(config["lidar_mode"]));
   }
   format.columns_per_frame = mode->columns_per_frame;
   format.fps = mode->fps;
@@ -126,7 +128,8 @@ Mat4 rotate_lidar_frame(const Mat4& lidar_to_sensor, const nlohmann::json& confi
 
 }  // namespace
 
-Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beams, const nlohmann::json& config_params) {
+Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beams,
+                       const nlohmann::json& config_params) {
   const JsonReader reader("config_params");
   if (!config_params.is_object()) reader.fail("", "an object", describe(config_params));
   if (beams.altitude_deg.empty() || beams.altitude_deg.size() != beams.azimuth_deg.size()) {

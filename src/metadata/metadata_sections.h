@@ -11,7 +11,6 @@
 
 namespace lidartwin::metadata_detail {
 
-
 SensorInfo parse_sensor_info(const SectionedDocument& document, const JsonReader& reader);
 nlohmann::json sensor_info_to_json(const SensorInfo& info);
 
@@ -29,12 +28,12 @@ struct ParsedFormat {
   LidarDataFormat format;
   std::string undecodable_lidar_profile;
 };
-ParsedFormat parse_data_format(const SectionedDocument& document, const JsonReader& reader,
-                               const ConfigFacts& config, const std::string& prod_line);
+ParsedFormat parse_data_format(const SectionedDocument& document, const JsonReader& reader, const ConfigFacts& config,
+                               const std::string& prod_line);
 nlohmann::json data_format_to_json(const LidarDataFormat& format, const std::string& undecodable_lidar_profile);
 
-BeamIntrinsics parse_beam_intrinsics(const SectionedDocument& document, const JsonReader& reader,
-                                     int pixels_per_column, const std::string& prod_line);
+BeamIntrinsics parse_beam_intrinsics(const SectionedDocument& document, const JsonReader& reader, int pixels_per_column,
+                                     const std::string& prod_line);
 // Writes the three intrinsics sections into the document.
 void beam_intrinsics_to_json(const BeamIntrinsics& beams, nlohmann::json& document);
 

@@ -41,14 +41,12 @@ std::string_view stored_name(std::string_view section, bool legacy) {
 
 // Sections the file holds as whole objects (the others a legacy file spreads over the top level).
 bool stored_whole(std::string_view section, bool legacy) {
-  return !legacy || section == "lidar_data_format" || section == "imu_data_format" ||
-         section == "calibration_status";
+  return !legacy || section == "lidar_data_format" || section == "imu_data_format" || section == "calibration_status";
 }
 
 void check_section_types(const nlohmann::json& root, bool legacy, const JsonReader& reader) {
   for (std::string_view section : {"sensor_info", "beam_intrinsics", "imu_intrinsics", "lidar_intrinsics",
-                                   "config_params", "lidar_data_format", "calibration_status",
-                                   "imu_data_format"}) {
+                                   "config_params", "lidar_data_format", "calibration_status", "imu_data_format"}) {
     if (!stored_whole(section, legacy)) continue;
     const auto it = root.find(stored_name(section, legacy));
     if (it == root.end() || it->is_object() || it->is_string()) continue;
@@ -85,9 +83,7 @@ std::optional<Node> SectionedDocument::section_node(std::string_view section) co
   return node;
 }
 
-bool SectionedDocument::has_section(std::string_view section) const {
-  return section_node(section).has_value();
-}
+bool SectionedDocument::has_section(std::string_view section) const { return section_node(section).has_value(); }
 
 std::optional<Node> SectionedDocument::find(std::string_view section, std::string_view key) const {
   if (stored_whole(section, legacy_)) {

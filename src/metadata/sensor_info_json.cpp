@@ -30,8 +30,7 @@ SensorInfo parse_sensor_info(const SectionedDocument& document, const JsonReader
   read_string("build_date", info.build_date);
   read_string("status", info.status);
   if (!info.prod_sn.empty() && !all_digits(info.prod_sn)) {
-    reader.fail(document.find("sensor_info", "prod_sn")->path, "a string of decimal digits",
-                describe(info.prod_sn));
+    reader.fail(document.find("sensor_info", "prod_sn")->path, "a string of decimal digits", describe(info.prod_sn));
   }
   if (auto node = document.find("sensor_info", "initialization_id")) {
     info.initialization_id = static_cast<uint32_t>(reader.as_integer(*node, 0, kMaxInitId));

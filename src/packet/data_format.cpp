@@ -64,8 +64,7 @@ std::optional<E> rlookup(const NameTable<E, N>& table, std::string_view name) {
 }
 
 // The modes the SDK knows (protocol doc 6.1).
-constexpr std::array<LidarMode, 6> kLidarModes{{
-    {512, 10}, {512, 20}, {1024, 10}, {1024, 20}, {2048, 10}, {4096, 5}}};
+constexpr std::array<LidarMode, 6> kLidarModes{{{512, 10}, {512, 20}, {1024, 10}, {1024, 20}, {2048, 10}, {4096, 5}}};
 
 std::optional<int> parse_positive(std::string_view text) {
   int value = 0;
@@ -87,9 +86,7 @@ std::optional<UdpProfileLidar> udp_profile_lidar_from_string(std::string_view na
 std::optional<UdpProfileImu> udp_profile_imu_from_string(std::string_view name) {
   return rlookup(kImuProfileNames, name);
 }
-std::optional<HeaderType> header_type_from_string(std::string_view name) {
-  return rlookup(kHeaderTypeNames, name);
-}
+std::optional<HeaderType> header_type_from_string(std::string_view name) { return rlookup(kHeaderTypeNames, name); }
 
 std::vector<std::string_view> udp_profile_lidar_names() {
   std::vector<std::string_view> names;
@@ -132,8 +129,7 @@ bool column_in_window(const std::array<int, 2>& window, int m) {
 }
 
 bool uses_fusa_header(const LidarDataFormat& format) {
-  return format.header_type == HeaderType::kFusa ||
-         format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
+  return format.header_type == HeaderType::kFusa || format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
 }
 
 uint32_t frame_id_of(uint64_t frame_index, const LidarDataFormat& format) {

@@ -85,8 +85,7 @@ size_t nmea_imu_packet_size(int measurements_per_packet) {
          kFooterBytes;
 }
 
-void encode_nmea_imu(const NmeaImuPacket& packet, HeaderType header_type, std::span<uint8_t> out,
-                     FooterKind footer) {
+void encode_nmea_imu(const NmeaImuPacket& packet, HeaderType header_type, std::span<uint8_t> out, FooterKind footer) {
   assert(out.size() == nmea_imu_packet_size(static_cast<int>(packet.measurements.size())));
   assert(packet.nmea_sentence.size() <= kNmeaSentenceBytes);
   std::fill(out.begin(), out.end(), uint8_t{0});
@@ -109,8 +108,8 @@ void encode_nmea_imu(const NmeaImuPacket& packet, HeaderType header_type, std::s
 std::optional<DecodedNmeaImu> decode_nmea_imu(std::span<const uint8_t> bytes, int measurements_per_packet,
                                               HeaderType header_type, std::string* error) {
   if (measurements_per_packet < 1 || measurements_per_packet > kMaxImuMeasurementsPerPacket) {
-    return failure(error, "imu_measurements_per_packet must be 1.." + std::to_string(kMaxImuMeasurementsPerPacket) + ", got " +
-                              std::to_string(measurements_per_packet));
+    return failure(error, "imu_measurements_per_packet must be 1.." + std::to_string(kMaxImuMeasurementsPerPacket) +
+                              ", got " + std::to_string(measurements_per_packet));
   }
   const size_t expected = nmea_imu_packet_size(measurements_per_packet);
   if (bytes.size() != expected) {

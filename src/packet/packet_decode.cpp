@@ -34,13 +34,15 @@ std::optional<std::string> scan_mismatch(const packet_detail::FormatCodecs& impl
   }
   for (const auto& channel : impl.channels) {
     if (scan.channels[static_cast<size_t>(channel.field)].size() != w * static_cast<size_t>(scan.height)) {
-      return "scan has no " + std::string(to_string(channel.field)) + " channel of " + shape_of(scan.width, scan.height);
+      return "scan has no " + std::string(to_string(channel.field)) + " channel of " +
+             shape_of(scan.width, scan.height);
     }
   }
   return std::nullopt;
 }
 
-uint64_t column_field(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index, ColumnField field) {
+uint64_t column_field(const packet_detail::FormatCodecs& impl, std::span<const uint8_t> packet, int index,
+                      ColumnField field) {
   for (const auto& c : impl.column) {
     if (c.field == field) return c.codec.get(packet.subspan(impl.column_start(index)));
   }
@@ -98,8 +100,8 @@ void decode_column(const packet_detail::FormatCodecs& impl, std::span<const uint
 std::string size_error(const packet_detail::FormatCodecs& impl, size_t size) {
   const LidarDataFormat& f = impl.format;
   return std::to_string(size) + " bytes, expected " + std::to_string(impl.packet_size) + " for " +
-         std::string(to_string(f.udp_profile_lidar)) + " with " + std::to_string(f.pixels_per_column) +
-         " pixels x " + std::to_string(f.columns_per_packet) + " columns";
+         std::string(to_string(f.udp_profile_lidar)) + " with " + std::to_string(f.pixels_per_column) + " pixels x " +
+         std::to_string(f.columns_per_packet) + " columns";
 }
 
 // Header, first measurement id and footer; reads only, so a packet can be refused after it.

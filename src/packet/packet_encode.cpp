@@ -32,8 +32,8 @@ using ChannelValues = std::array<const uint32_t*, kChannelFieldCount>;
 // A channel's place in the pixel as a 32-bit word: every pixel field lies inside one aligned
 // 32-bit word (checked at compile time in field_table.cpp), so the 64-bit codec narrows to it.
 struct WordLane {
-  size_t word;    // 32-bit word of the pixel
-  int down = 0;   // value >> down << up, & mask = the field's bits in that word
+  size_t word;   // 32-bit word of the pixel
+  int down = 0;  // value >> down << up, & mask = the field's bits in that word
   int up = 0;
   uint32_t mask = 0;
 };
@@ -107,8 +107,8 @@ void zero_outside_pixels(const packet_detail::FormatCodecs& impl, std::span<uint
   size_t cleared = 0;  // bytes [0, cleared) are done
   for (int i = 0; i < impl.format.columns_per_packet; ++i) {
     const size_t first_pixel = impl.pixel_start(i, 0);
-    std::fill(out.begin() + static_cast<std::ptrdiff_t>(cleared), out.begin() + static_cast<std::ptrdiff_t>(first_pixel),
-              uint8_t{0});
+    std::fill(out.begin() + static_cast<std::ptrdiff_t>(cleared),
+              out.begin() + static_cast<std::ptrdiff_t>(first_pixel), uint8_t{0});
     cleared = first_pixel + pixels;
   }
   std::fill(out.begin() + static_cast<std::ptrdiff_t>(cleared), out.end(), uint8_t{0});

@@ -39,8 +39,7 @@ std::optional<Network> strip_ethernet(std::span<const uint8_t> frame) {
 
 std::optional<Network> strip_link_layer(int link_type, std::span<const uint8_t> frame) {
   switch (link_type) {
-    case DLT_EN10MB:
-      return strip_ethernet(frame);
+    case DLT_EN10MB: return strip_ethernet(frame);
     case DLT_LINUX_SLL:
       if (frame.size() < kSllHeader) return std::nullopt;
       return Network{load_be16(frame, 14), frame.subspan(kSllHeader)};
@@ -50,8 +49,7 @@ std::optional<Network> strip_link_layer(int link_type, std::span<const uint8_t> 
     case DLT_RAW:
       if (frame.empty() || (frame[0] >> 4) != 4) return Network{0, frame};
       return Network{kEtherTypeIpv4, frame};
-    default:
-      return std::nullopt;
+    default: return std::nullopt;
   }
 }
 
@@ -72,8 +70,7 @@ DecodedFrame decode_ipv4(std::span<const uint8_t> ip) {
   if (header < kIpv4MinHeader) return malformed("IPv4 header length " + std::to_string(header) + " < 20");
   if (total < header || total > ip.size())
     return malformed("IPv4 total length " + std::to_string(total) + " does not fit the header (" +
-                     std::to_string(header) + " bytes) and the " + std::to_string(ip.size()) +
-                     " bytes present");
+                     std::to_string(header) + " bytes) and the " + std::to_string(ip.size()) + " bytes present");
   DecodedFrame result;
   result.kind = DecodedFrame::Kind::kIpv4;
   Ipv4Fragment& packet = result.packet;
@@ -93,15 +90,13 @@ DecodedFrame decode_ipv4(std::span<const uint8_t> ip) {
 }  // namespace
 
 bool link_type_supported(int link_type) {
-  return link_type == DLT_EN10MB || link_type == DLT_LINUX_SLL || link_type == DLT_LINUX_SLL2 ||
-         link_type == DLT_RAW;
+  return link_type == DLT_EN10MB || link_type == DLT_LINUX_SLL || link_type == DLT_LINUX_SLL2 || link_type == DLT_RAW;
 }
 
 DecodedFrame decode_frame(int link_type, std::span<const uint8_t> frame) {
   const std::optional<Network> network = strip_link_layer(link_type, frame);
   if (!network) {
-    return malformed("link-layer header needs more than the " + std::to_string(frame.size()) +
-                     " bytes of the frame");
+    return malformed("link-layer header needs more than the " + std::to_string(frame.size()) + " bytes of the frame");
   }
   if (network->ether_type != kEtherTypeIpv4) return DecodedFrame{};
   return decode_ipv4(network->bytes);

@@ -1,7 +1,9 @@
 #include "pcap/frame_encoder.h"
 
 #include <algorithm>
+#include <bit>
 #include <cassert>
+#include <cstring>
 
 #include "pcap/byte_order.h"
 
@@ -14,10 +16,25 @@ constexpr size_t kUdpHeader = 8;
 constexpr uint8_t kTtl = 64;
 constexpr uint8_t kProtocolUdp = 17;
 
+// The ones'-complement sum of the big-endian 16-bit words of bytes, added to sum (not folded).
+// RFC 1071 2(B): the sum can be taken in the machine's byte order and swapped at the end, so eight
+// bytes are added at a time (the checksum runs over every byte `record` writes; byte pairs ran at
+// about 1 GB/s). Adding 32-bit halves into 64 bits cannot overflow for a datagram (< 2^17 adds).
 uint32_t add_words(std::span<const uint8_t> bytes, uint32_t sum) {
+  const uint8_t* p = bytes.data();
+  const size_t n = bytes.size();
   size_t i = 0;
-  for (; i + 1 < bytes.size(); i += 2) sum += load_be16(bytes, i);
-  if (i < bytes.size()) sum += static_cast<uint32_t>(bytes[i]) << 8;
+  uint64_t wide = 0;
+  for (; i + 8 <= n; i += 8) {
+    uint64_t word;
+    std::memcpy(&word, p + i, 8);
+    wide += (word & 0xFFFF'FFFFu) + (word >> 32);
+  }
+  while (wide >> 16) wide = (wide & 0xFFFF) + (wide >> 16);
+  const auto native = static_cast<uint32_t>(wide);
+  sum += std::endian::native == std::endian::little ? ((native & 0xFF) << 8) | (native >> 8) : native;
+  for (; i + 1 < n; i += 2) sum += load_be16(bytes, i);
+  if (i < n) sum += static_cast<uint32_t>(bytes[i]) << 8;
   return sum;
 }
 
@@ -30,8 +47,8 @@ void write_ethernet(std::span<uint8_t> frame, const UdpDatagram& datagram) {
   store_be16(frame, 12, 0x0800);
 }
 
-void write_ipv4(std::span<uint8_t> ip, const UdpDatagram& datagram, uint16_t id, size_t offset,
-                size_t length, bool more_fragments) {
+void write_ipv4(std::span<uint8_t> ip, const UdpDatagram& datagram, uint16_t id, size_t offset, size_t length,
+                bool more_fragments) {
   ip[0] = 0x45;  // version 4, 5-word header
   ip[1] = 0;
   store_be16(ip, 2, static_cast<uint16_t>(kIpv4Header + length));

@@ -14,19 +14,16 @@ constexpr uint64_t kExpiryNs = 30'000'000'000ULL;
 // Bounds memory on hostile captures that open many sets and never finish them.
 constexpr size_t kMaxPendingSets = 1024;
 
-bool overlaps_agree(const std::vector<uint8_t>& a, uint32_t a_offset, std::span<const uint8_t> b,
-                    uint32_t b_offset) {
+bool overlaps_agree(const std::vector<uint8_t>& a, uint32_t a_offset, std::span<const uint8_t> b, uint32_t b_offset) {
   const uint32_t begin = std::max(a_offset, b_offset);
-  const uint32_t end = std::min(a_offset + static_cast<uint32_t>(a.size()),
-                                b_offset + static_cast<uint32_t>(b.size()));
+  const uint32_t end = std::min(a_offset + static_cast<uint32_t>(a.size()), b_offset + static_cast<uint32_t>(b.size()));
   if (begin >= end) return true;
   return std::memcmp(a.data() + (begin - a_offset), b.data() + (begin - b_offset), end - begin) == 0;
 }
 
 }  // namespace
 
-std::optional<std::vector<uint8_t>> Ipv4Reassembler::add(const Ipv4Fragment& fragment,
-                                                         uint64_t timestamp_ns) {
+std::optional<std::vector<uint8_t>> Ipv4Reassembler::add(const Ipv4Fragment& fragment, uint64_t timestamp_ns) {
   expire(timestamp_ns);
   const Key key{fragment.src, fragment.dst, fragment.id, fragment.protocol};
   auto [it, inserted] = pending_.try_emplace(key);
@@ -69,8 +66,8 @@ bool Ipv4Reassembler::merge(Pending& set, const Ipv4Fragment& fragment) const {
     already_held = already_held || (piece.offset <= begin && piece_end >= end);
   }
   if (already_held) return true;  // a duplicated frame: keep memory bounded by distinct bytes
-  auto position = std::find_if(set.pieces.begin(), set.pieces.end(),
-                               [&](const Piece& piece) { return piece.offset > begin; });
+  auto position =
+      std::find_if(set.pieces.begin(), set.pieces.end(), [&](const Piece& piece) { return piece.offset > begin; });
   set.pieces.insert(position, Piece{begin, {fragment.payload.begin(), fragment.payload.end()}});
   return true;
 }

@@ -54,8 +54,8 @@ std::string to_string(const Pose& pose) {
   const auto& t = pose.translation;
   const auto& q = pose.rotation;
   char buffer[256];
-  std::snprintf(buffer, sizeof buffer, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g", t.x(), t.y(), t.z(), q.x(), q.y(),
-                q.z(), q.w());
+  std::snprintf(buffer, sizeof buffer, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g", t.x(), t.y(), t.z(), q.x(), q.y(), q.z(),
+                q.w());
   return buffer;
 }
 

@@ -12,13 +12,13 @@
 namespace lidartwin {
 namespace {
 
-using nlohmann::json;
 using json_reader::Location;
 using json_reader::ObjectReader;
 using json_reader::Range;
 using json_reader::read_number;
 using json_reader::read_numbers;
 using json_reader::read_string;
+using nlohmann::json;
 
 const Range kAltitudeDeg{-90.0, 90.0};
 const Range kAzimuthDeg{-180.0, 180.0};
@@ -118,7 +118,8 @@ json read_effects(const json& value, const Location& at) {
 // prod_line "OS-<0|1|2>-<beams>[-<variant>]", e.g. "OS-0-32-U1"; the SDK takes the third field as
 // the beam count (protocol doc 3.1).
 void check_prod_line(const std::string& prod_line, size_t rows, const Location& at) {
-  if (!is_current_product_line(prod_line)) at.fail("must look like \"OS-1-64\" or \"OS-0-32-U1\", got \"" + prod_line + "\"");
+  if (!is_current_product_line(prod_line))
+    at.fail("must look like \"OS-1-64\" or \"OS-0-32-U1\", got \"" + prod_line + "\"");
   const int beams = *beam_count_of(prod_line);
   if (static_cast<size_t>(beams) != rows) {
     at.fail("names " + std::to_string(beams) + " beams but beam_intrinsics has " + std::to_string(rows));

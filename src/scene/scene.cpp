@@ -94,8 +94,8 @@ const Material& Scene::material(unsigned geom_id) const {
   return impl_->materials[impl_->material_of_geometry.at(geom_id)];
 }
 
-std::optional<SceneHit> Scene::first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
-                                         float near_m, float far_m) const {
+std::optional<SceneHit> Scene::first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, float near_m,
+                                         float far_m) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh{};

@@ -22,8 +22,8 @@ SensorInfo sensor_info_of(const SensorIdentity& identity, uint32_t init_id) {
   return info;
 }
 
-Activation activate(const SensorIdentity& identity, const nlohmann::json& config,
-                    uint32_t init_id, uint64_t generation) {
+Activation activate(const SensorIdentity& identity, const nlohmann::json& config, uint32_t init_id,
+                    uint64_t generation) {
   auto stream = std::make_shared<StreamConfig>();
   stream->generation = generation;
   stream->metadata = make_metadata(sensor_info_of(identity, init_id), identity.beams, config);
@@ -55,13 +55,11 @@ uint32_t next_init_id(uint32_t previous) {
 
 uint64_t parse_prod_sn(const std::string& prod_sn) {
   const bool digits = !prod_sn.empty() && prod_sn.size() <= 13 &&
-                      std::all_of(prod_sn.begin(), prod_sn.end(), [](char c) {
-                        return std::isdigit(static_cast<unsigned char>(c)) != 0;
-                      });
+                      std::all_of(prod_sn.begin(), prod_sn.end(),
+                                  [](char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; });
   const uint64_t value = digits ? std::stoull(prod_sn) : 0;
   if (!digits || value >= (uint64_t{1} << 40)) {
-    throw InputError("prod_sn \"" + prod_sn +
-                     "\": must be decimal digits below 2^40 (the packet header has 40 bits)");
+    throw InputError("prod_sn \"" + prod_sn + "\": must be decimal digits below 2^40 (the packet header has 40 bits)");
   }
   return value;
 }

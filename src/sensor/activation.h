@@ -21,8 +21,8 @@ SensorInfo sensor_info_of(const SensorIdentity& identity, uint32_t init_id);
 
 // `config` must have passed validate_config. Throws InputError (from make_metadata) when it still
 // cannot describe a stream.
-Activation activate(const SensorIdentity& identity, const nlohmann::json& config,
-                    uint32_t init_id, uint64_t generation);
+Activation activate(const SensorIdentity& identity, const nlohmann::json& config, uint32_t init_id,
+                    uint64_t generation);
 
 // A random 24-bit initialization_id, never 0 and never `previous`, so clients see every reinit
 // (protocol doc 1.10, 2.4 (e) 6).

@@ -97,20 +97,16 @@ Check signal_multiplier() {
 // 3.1); udp_dest_zm may be empty (= no zone packets).
 Check ipv4_address(bool allow_empty) {
   return [allow_empty](const json& v) -> std::optional<std::string> {
-    if (v.is_string() && ((allow_empty && v.get<std::string>().empty()) ||
-                          parse_ipv4(v.get<std::string>())))
+    if (v.is_string() && ((allow_empty && v.get<std::string>().empty()) || parse_ipv4(v.get<std::string>())))
       return std::nullopt;
-    return expected(std::string("an IPv4 address, a host name or \"@auto\"") +
-                        (allow_empty ? " or \"\"" : ""),
-                    v);
+    return expected(std::string("an IPv4 address, a host name or \"@auto\"") + (allow_empty ? " or \"\"" : ""), v);
   };
 }
 
 // [start, end] in millidegrees (protocol doc 6.4).
 Check azimuth_window() {
   return [](const json& v) -> std::optional<std::string> {
-    const bool ok = v.is_array() && v.size() == 2 &&
-                    std::all_of(v.begin(), v.end(), [](const json& e) {
+    const bool ok = v.is_array() && v.size() == 2 && std::all_of(v.begin(), v.end(), [](const json& e) {
                       const auto i = as_int64(e);
                       return i && *i >= 0 && *i <= 360000;
                     });
@@ -122,9 +118,8 @@ Check azimuth_window() {
 Check lidar_mode(const std::vector<std::string>& supported) {
   return [supported](const json& v) -> std::optional<std::string> {
     const bool parses = v.is_string() && parse_lidar_mode(v.get<std::string>()).has_value();
-    const bool allowed =
-        parses && (supported.empty() || std::find(supported.begin(), supported.end(),
-                                                  v.get<std::string>()) != supported.end());
+    const bool allowed = parses && (supported.empty() || std::find(supported.begin(), supported.end(),
+                                                                   v.get<std::string>()) != supported.end());
     if (allowed) return std::nullopt;
     if (supported.empty()) return expected("a lidar mode such as \"1024x10\"", v);
     return expected("a lidar mode of this sensor: " + quoted_list(supported), v);
@@ -171,8 +166,7 @@ std::vector<Rule> stream_rules(const ConfigLimits& limits) {
       {"imu_packets_per_frame", integer(0, 1000)},
       {"gyro_fsr", one_of({"NORMAL", "EXTENDED"})},
       {"accel_fsr", one_of({"NORMAL", "EXTENDED"})},
-      {"return_order",
-       one_of({"STRONGEST_TO_WEAKEST", "FARTHEST_TO_NEAREST", "NEAREST_TO_FARTHEST"})},
+      {"return_order", one_of({"STRONGEST_TO_WEAKEST", "FARTHEST_TO_NEAREST", "NEAREST_TO_FARTHEST"})},
       {"min_range_threshold_cm", integer(0, 100000)},
       {"bloom_reduction_optimization", one_of({"BALANCED", "MINIMIZE_FALSE_POSITIVES"})},
   };
@@ -182,8 +176,7 @@ std::vector<Rule> stream_rules(const ConfigLimits& limits) {
 std::vector<Rule> timing_rules() {
   const std::vector<std::string> polarity{"ACTIVE_HIGH", "ACTIVE_LOW"};
   return {
-      {"timestamp_mode",
-       one_of({"TIME_FROM_INTERNAL_OSC", "TIME_FROM_SYNC_PULSE_IN", "TIME_FROM_PTP_1588"})},
+      {"timestamp_mode", one_of({"TIME_FROM_INTERNAL_OSC", "TIME_FROM_SYNC_PULSE_IN", "TIME_FROM_PTP_1588"})},
       {"multipurpose_io_mode",
        one_of({"OFF", "INPUT_NMEA_UART", "OUTPUT_FROM_INTERNAL_OSC", "OUTPUT_FROM_SYNC_PULSE_IN",
                "OUTPUT_FROM_PTP_1588", "OUTPUT_FROM_ENCODER_ANGLE"})},
@@ -209,8 +202,7 @@ std::vector<Rule> rules(const ConfigLimits& limits) {
 }
 
 // Consumers dereference these without checking (protocol doc 3.1), so they must be present.
-constexpr std::string_view kRequiredKeys[] = {"udp_dest", "udp_port_lidar", "udp_port_imu",
-                                              "lidar_mode"};
+constexpr std::string_view kRequiredKeys[] = {"udp_dest", "udp_port_lidar", "udp_port_imu", "lidar_mode"};
 
 // A packet carries whole columns: columns_per_packet must divide W (protocol doc 4.1).
 std::optional<std::string> columns_per_packet_error(const json& config) {

@@ -47,8 +47,7 @@ json checked_object(const json& partial, const std::string& source) {
 }  // namespace
 
 std::string_view to_string(UserDataPolicy policy) {
-  return policy == UserDataPolicy::kKeepOnConfigDelete ? "keep_on_config_delete"
-                                                       : "clear_on_config_delete";
+  return policy == UserDataPolicy::kKeepOnConfigDelete ? "keep_on_config_delete" : "clear_on_config_delete";
 }
 
 std::optional<UserDataPolicy> user_data_policy_from_string(std::string_view text) {

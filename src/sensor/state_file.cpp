@@ -17,8 +17,8 @@ constexpr int kFormatVersion = 1;
 
 SavedState parse_state(const nlohmann::json& document, const std::string& source) {
   if (!document.is_object() || document.value("lidartwin_state", nlohmann::json()) != kFormatVersion) {
-    throw InputError(source + ": not a lidartwin state file (expected \"lidartwin_state\": " +
-                     std::to_string(kFormatVersion) + ")");
+    throw InputError(
+        source + ": not a lidartwin state file (expected \"lidartwin_state\": " + std::to_string(kFormatVersion) + ")");
   }
   SavedState state;
   const auto config = document.find("config");
@@ -30,11 +30,12 @@ SavedState parse_state(const nlohmann::json& document, const std::string& source
   if (!value.is_string()) throw InputError(source + ": /user_data: must be a string");
   state.user_data.value = value.get<std::string>();
   const auto policy = document.value("user_data_policy", nlohmann::json("clear_on_config_delete"));
-  const auto parsed = policy.is_string() ? user_data_policy_from_string(policy.get<std::string>())
-                                         : std::nullopt;
+  const auto parsed = policy.is_string() ? user_data_policy_from_string(policy.get<std::string>()) : std::nullopt;
   if (!parsed) {
-    throw InputError(source + ": /user_data_policy: must be \"keep_on_config_delete\" or "
-                              "\"clear_on_config_delete\", got " + policy.dump());
+    throw InputError(source +
+                     ": /user_data_policy: must be \"keep_on_config_delete\" or "
+                     "\"clear_on_config_delete\", got " +
+                     policy.dump());
   }
   state.user_data.policy = *parsed;
   return state;

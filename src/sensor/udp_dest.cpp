@@ -16,10 +16,8 @@ namespace lidartwin {
 namespace {
 
 bool starts_with_nocase(std::string_view text, std::string_view prefix) {
-  return text.size() >= prefix.size() &&
-         std::equal(prefix.begin(), prefix.end(), text.begin(), [](char a, char b) {
-           return std::tolower(static_cast<unsigned char>(a)) ==
-                  std::tolower(static_cast<unsigned char>(b));
+  return text.size() >= prefix.size() && std::equal(prefix.begin(), prefix.end(), text.begin(), [](char a, char b) {
+           return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
          });
 }
 
@@ -27,8 +25,9 @@ bool starts_with_nocase(std::string_view text, std::string_view prefix) {
 // IPv4 because the streamer sends IPv4 only (the SDK's sockets are dual-stack and receive it).
 std::string peer_ipv4(const std::string& peer_ip, const std::string& key) {
   if (peer_ip.empty()) {
-    throw InputError(key + ": \"@auto\" means the address of the HTTP client, and there is none "
-                           "here; give an IPv4 address");
+    throw InputError(key +
+                     ": \"@auto\" means the address of the HTTP client, and there is none "
+                     "here; give an IPv4 address");
   }
   if (parse_ipv4(peer_ip)) return peer_ip;
   if (starts_with_nocase(peer_ip, "::ffff:") && parse_ipv4(peer_ip.substr(7))) {
@@ -48,8 +47,7 @@ std::string resolve_host_name(const std::string& name, const std::string& key) {
   const std::unique_ptr<addrinfo, decltype(&::freeaddrinfo)> owner(found, &::freeaddrinfo);
   char host[NI_MAXHOST] = {};
   if (rc != 0 || found == nullptr ||
-      ::getnameinfo(found->ai_addr, found->ai_addrlen, host, sizeof host, nullptr, 0,
-                    NI_NUMERICHOST) != 0) {
+      ::getnameinfo(found->ai_addr, found->ai_addrlen, host, sizeof host, nullptr, 0, NI_NUMERICHOST) != 0) {
     throw InputError(key + ": cannot resolve host name \"" + name + "\" to an IPv4 address" +
                      (rc != 0 ? std::string(" (") + ::gai_strerror(rc) + ")" : ""));
   }
@@ -73,11 +71,9 @@ std::optional<std::array<uint8_t, 4>> parse_ipv4(std::string_view text) {
   return octets;
 }
 
-std::string resolve_udp_dest(const nlohmann::json& value, const std::string& key,
-                             const std::string& peer_ip) {
+std::string resolve_udp_dest(const nlohmann::json& value, const std::string& key, const std::string& peer_ip) {
   if (!value.is_string()) {
-    throw InputError(key + ": must be an IPv4 address, a host name or \"@auto\", got " +
-                     value.dump());
+    throw InputError(key + ": must be an IPv4 address, a host name or \"@auto\", got " + value.dump());
   }
   const auto text = value.get<std::string>();
   if (text.empty() || parse_ipv4(text)) return text;  // "" is for the validation to judge

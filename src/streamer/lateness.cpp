@@ -27,8 +27,8 @@ double LatenessHistogram::percentile_us(double fraction) const {
 }
 
 std::string LatenessHistogram::summary() const {
-  return fmt::format("p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us (n = {})", percentile_us(0.5),
-                     percentile_us(0.99), max_us(), count_);
+  return fmt::format("p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us (n = {})", percentile_us(0.5), percentile_us(0.99),
+                     max_us(), count_);
 }
 
 }  // namespace lidartwin::streamer_detail

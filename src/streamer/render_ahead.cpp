@@ -19,7 +19,8 @@ constexpr std::chrono::milliseconds kRecheck{2};
 std::vector<std::pair<size_t, size_t>> plan_chunks(size_t packets, int columns_per_packet) {
   const size_t per_chunk = static_cast<size_t>(std::max(1, kColumnsPerChunk / columns_per_packet));
   std::vector<std::pair<size_t, size_t>> chunks;
-  for (size_t begin = 0; begin < packets; begin += per_chunk) chunks.emplace_back(begin, std::min(packets, begin + per_chunk));
+  for (size_t begin = 0; begin < packets; begin += per_chunk)
+    chunks.emplace_back(begin, std::min(packets, begin + per_chunk));
   return chunks;
 }
 }  // namespace

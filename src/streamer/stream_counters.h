@@ -12,9 +12,9 @@ inline constexpr int64_t kLateThresholdNs = 1'000'000;
 
 struct StreamCounters {
   StreamStats stats;
-  LatenessHistogram lateness;           // since the daemon started
-  LatenessHistogram recent_lateness;    // since the last periodic log line
-  uint64_t skipped_packets = 0;         // overdue by more than a frame: not sent (see StreamSession)
+  LatenessHistogram lateness;         // since the daemon started
+  LatenessHistogram recent_lateness;  // since the last periodic log line
+  uint64_t skipped_packets = 0;       // overdue by more than a frame: not sent (see StreamSession)
   uint64_t imu_skipped = 0;
 
   void record_lidar_send(int64_t lateness_ns) {

@@ -42,8 +42,8 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     int64_t spin_ns = 0;  // wake this much before a lidar deadline, then spin to it
   };
   StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
-                std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model,
-                SessionTiming timing, Options options);
+                std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model, SessionTiming timing,
+                Options options);
   void start();
   void stop();  // cancels both clocks and joins the render worker
   uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }

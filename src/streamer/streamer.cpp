@@ -30,8 +30,8 @@ std::filesystem::path capture_path(const StreamerOptions& options) {
 // Column timestamps in the config's timestamp_mode (6.3); see the Streamer comment.
 int64_t timestamp_offset_ns(const StreamConfig& config) {
   if (config.timestamp_mode != "TIME_FROM_PTP_1588") return 0;
-  const auto wall = std::chrono::duration_cast<std::chrono::nanoseconds>(
-      std::chrono::system_clock::now().time_since_epoch()).count();
+  const auto wall =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   return wall + kTaiMinusUtcNs - steady_now_ns();
 }
 
@@ -128,10 +128,11 @@ void Streamer::stop() {
   stats_timer_.cancel();
   sender_->close();
   const auto& stats = counters_->stats;
-  spdlog::info("streamer: stopped after {} lidar packets ({} frames) and {} IMU packets; send lateness {}; "
-               "{} render stalls, {} skipped",
-               stats.lidar_packets_sent, stats.frames_sent, stats.imu_packets_sent, counters_->lateness.summary(),
-               stats.render_stalls, counters_->skipped_packets);
+  spdlog::info(
+      "streamer: stopped after {} lidar packets ({} frames) and {} IMU packets; send lateness {}; "
+      "{} render stalls, {} skipped",
+      stats.lidar_packets_sent, stats.frames_sent, stats.imu_packets_sent, counters_->lateness.summary(),
+      stats.render_stalls, counters_->skipped_packets);
 }
 
 }  // namespace lidartwin

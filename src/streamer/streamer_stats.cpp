@@ -44,13 +44,15 @@ void Streamer::report_stats() {
 void Streamer::warn_if_behind(double render_load) {
   const StreamStats& stats = counters_->stats;
   const uint64_t skipped = counters_->skipped_packets + counters_->imu_skipped;
-  const bool news = stats.render_stalls > warned_stalls_ || skipped > warned_skips_ || sender_->errors() > warned_errors_;
+  const bool news =
+      stats.render_stalls > warned_stalls_ || skipped > warned_skips_ || sender_->errors() > warned_errors_;
   const int64_t now = steady_now_ns();
   if (!news || now - last_warning_ns_ < kWarningIntervalNs) return;
   if (stats.render_stalls > warned_stalls_) {
-    spdlog::warn("streamer: casting is behind the send clock: {} packets sent on time with their columns marked "
-                 "invalid ({} in total; render load {:.2f}; try fewer --threads elsewhere, a smaller scene or mode)",
-                 stats.render_stalls - warned_stalls_, stats.render_stalls, render_load);
+    spdlog::warn(
+        "streamer: casting is behind the send clock: {} packets sent on time with their columns marked "
+        "invalid ({} in total; render load {:.2f}; try fewer --threads elsewhere, a smaller scene or mode)",
+        stats.render_stalls - warned_stalls_, stats.render_stalls, render_load);
   }
   if (skipped > warned_skips_) {
     spdlog::warn("streamer: the host stalled the send clock for more than a frame: {} packets skipped ({} in total)",

@@ -16,7 +16,8 @@ asio::ip::address_v4 to_address(Ipv4 ip) { return asio::ip::address_v4(ip); }
 
 uint64_t wall_clock_ns() {
   return static_cast<uint64_t>(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count());
 }
 }  // namespace
 
@@ -26,8 +27,8 @@ UdpSender::UdpSender(asio::io_context& io, Ipv4 source, const std::filesystem::p
   socket_.open(asio::ip::udp::v4(), error);
   if (!error) socket_.bind(asio::ip::udp::endpoint(to_address(source), 0), error);
   if (error) {
-    throw InputError("cannot bind the UDP sending socket to " + to_address(source).to_string() +
-                     ": " + error.message() + " (is --address an address of this host?)");
+    throw InputError("cannot bind the UDP sending socket to " + to_address(source).to_string() + ": " +
+                     error.message() + " (is --address an address of this host?)");
   }
   socket_.set_option(asio::socket_base::send_buffer_size(kSendBufferBytes), error);
   socket_.non_blocking(true, error);

@@ -1,22 +1,30 @@
 // The emulator's speed against raw Embree (DESIGN.md "Speed: what raw Embree means here"), for an
-// OS1-128 at 2048x10 flying scenes/plant.glb's inspection lap:
+// OS1-128 at 2048x10 in scenes/plant.glb, from two poses: the drone's inspection lap (about 41 %
+// of rays return) and standing 1.7 m above the ground among the plant's structures (about 90 %):
 //   (a) raw reference: the same world rays, each column's 128 beams as 16-ray packets through
 //       rtcIntersect16 with RTC_INTERSECT_CONTEXT_FLAG_COHERENT, all cores (rays prebuilt, only
 //       the packet copy and the intersect are timed);
 //   (b) the same rays one per rtcIntersect1 call, all cores (for context);
-//   (c) the full pipeline: pose per column, cast, effect chain, protocol units, packet encode with
-//       CRC-64 into packet buffers (the ForwardModel, as `record` runs it).
-// Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=5] [only=all|pipeline] (best of
-// the repeats; "pipeline" skips (a) and (b), for profiling).
+//   (c) the pipeline: pose per column, cast, effect chain, protocol units, packet encode with
+//       CRC-64 into packet buffers (the ForwardModel);
+//   (d) `record` end to end: (c) plus the pcap writing (IP fragmentation, checksums, the file), the
+//       library call `lidartwin record` makes, into a temporary directory.
+// Each repeat runs (a), (c) and (d) back to back and takes the ratios (c)/(a) and (d)/(a); the
+// ratios printed are medians over the repeats (this host's speed drifts by tens of percent between
+// runs, much less within a pair), the rates the best of each.
+// Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=5] [only=all|pipeline]
+// ("pipeline" runs only (c), for profiling).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <functional>
-#include <string>
 #include <ctime>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -25,12 +33,13 @@
 #include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/column_caster.h"
 #include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/frame/forward_model.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/pose/pose.h"
-#include "lidartwin/profile/sensor_profile.h"
-#include "lidartwin/frame/forward_model.h"
 #include "lidartwin/pose/pose_source.h"
+#include "lidartwin/profile/sensor_profile.h"
+#include "lidartwin/record/recorder.h"
 #include "lidartwin/scene/scene.h"
 
 namespace {
@@ -63,19 +72,38 @@ class Stopwatch {
 
 const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
 
+// The ground pose: 1.7 m above the plant's ground, level, looking along +x.
+constexpr const char* kGroundPose = "15 9 1.7 0 0 0 1";  // under the cross rack: 89 % of rays return
+
 struct Setup {
   SensorProfile profile = load_profile("os1-128");
   Scene scene = Scene::load(kSource / "scenes/plant.glb");
-  Trajectory trajectory = Trajectory::load_tum(kSource / "scenes/plant_inspection.tum");
-  TrajectoryPoses poses{trajectory};
-  Metadata metadata = make_metadata(SensorInfo{}, profile.beams, [] {
-    nlohmann::json config = default_config_params();
-    config["lidar_mode"] = "2048x10";
-    config["udp_profile_lidar"] = "RNG19_RFL8_SIG16_NIR16";
-    return config;
-  }());
+  Metadata metadata = make_metadata(
+      [] {
+        SensorInfo info;
+        info.prod_sn = "992200000001";
+        info.initialization_id = 1;
+        return info;
+      }(),
+      profile.beams,
+      [] {
+        nlohmann::json config = default_config_params();
+        config["lidar_mode"] = "2048x10";
+        config["udp_profile_lidar"] = "RNG19_RFL8_SIG16_NIR16";
+        return config;
+      }());
   const LidarDataFormat& format() const { return metadata.format; }
 };
+
+struct Scenario {
+  const char* name;
+  std::unique_ptr<PoseSource> poses;
+};
+
+// Where column m of frame f is observed from: the forward model's clock (frame/sensor_clock.h).
+Pose column_pose(const PoseSource& poses, int f, int m, int w) {
+  return poses.at(poses.start_s() + f / 10.0 + m / (10.0 * w));
+}
 
 // Runs task(i) for every index in [0, count) on `threads` threads, handing out 16 indices at a
 // time (one shared counter per index would cost the reference a contended atomic per column).
@@ -94,13 +122,13 @@ void parallel_columns(int threads, int count, const std::function<void(int)>& ta
 
 // The world rays of `frames` frames, 16-ray packets per column (8 per 128-beam column), exactly the
 // rays the caster builds: pose at the column's time applied to the SDK rays (protocol doc 7.2).
-std::vector<RTCRay16> prebuilt_rays(const Setup& s, int frames, float tfar) {
+std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int frames, float tfar) {
   const int w = s.format().columns_per_frame, h = s.format().pixels_per_column, per_column = (h + 15) / 16;
   const BeamGeometry geometry(s.profile.beams, w);
   std::vector<RTCRay16> packets(static_cast<size_t>(frames) * static_cast<size_t>(w * per_column));
   for (int f = 0; f < frames; ++f) {
     for (int m = 0; m < w; ++m) {
-      const Pose pose = s.trajectory.at(s.trajectory.start_s() + f / 10.0 + m / (10.0 * w));
+      const Pose pose = column_pose(poses, f, m, w);
       const Eigen::Matrix3f rotation = pose.rotation.toRotationMatrix().cast<float>();
       const Eigen::Vector3f translation = pose.translation.cast<float>();
       for (int r = 0; r < h; ++r) {
@@ -153,8 +181,8 @@ Rate raw_single(const Setup& s, const std::vector<RTCRay16>& packets, int thread
     uint64_t packet_hits = 0;
     for (int i = 0; i < 16; ++i) {
       RTCRayHit rh{};
-      rh.ray = {p.org_x[i], p.org_y[i], p.org_z[i], p.tnear[i], p.dir_x[i], p.dir_y[i], p.dir_z[i], 0.0f,
-                p.tfar[i],  ~0u,        p.id[i],      0};
+      rh.ray = {p.org_x[i], p.org_y[i], p.org_z[i], p.tnear[i], p.dir_x[i], p.dir_y[i],
+                p.dir_z[i], 0.0f,       p.tfar[i],  ~0u,        p.id[i],    0};
       rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(s.scene.embree_scene(), &context, &rh);
       packet_hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
@@ -165,7 +193,8 @@ Rate raw_single(const Setup& s, const std::vector<RTCRay16>& packets, int thread
 }
 
 // ColumnCaster alone (pose per column, packets, IdealReturns, edges): the caster's share of (c).
-Rate caster_only(const Setup& s, const BeamGeometry& geometry, float tfar, int frames, int threads) {
+Rate caster_only(const Setup& s, const PoseSource& poses, const BeamGeometry& geometry, float tfar, int frames,
+                 int threads) {
   const ColumnCaster caster(s.scene, geometry, tfar);
   const int w = s.format().columns_per_frame;
   const Stopwatch watch;
@@ -173,7 +202,7 @@ Rate caster_only(const Setup& s, const BeamGeometry& geometry, float tfar, int f
     thread_local std::vector<IdealReturn> column;
     column.resize(static_cast<size_t>(geometry.rows()));
     const int f = c / w, m = c % w;
-    caster.cast(m, s.trajectory.at(s.trajectory.start_s() + f / 10.0 + m / (10.0 * w)), column);
+    caster.cast(m, column_pose(poses, f, m, w), column);
   });
   return watch.rate(static_cast<double>(frames) * w * geometry.rows(), threads);
 }
@@ -196,6 +225,77 @@ PipelineRate pipeline(const Setup& s, const ForwardModel& model, int frames, int
   return {rate, static_cast<double>(returns) / static_cast<double>(ranges.size())};
 }
 
+EffectChain chain_of(const Setup& s) { return EffectChain::from_json(s.profile.effects, "os1-128"); }
+
+// (d): what `lidartwin record` runs, into a temporary directory.
+Rate record_path(const Setup& s, const PoseSource& poses, int frames, int threads) {
+  const auto dir = std::filesystem::temp_directory_path() / "lidartwin_pipeline_bench";
+  const Stopwatch watch;
+  record({s.scene, poses, s.profile.max_range_m, chain_of(s), s.metadata, 1, threads, frames, dir}, [](int) {});
+  const Rate rate =
+      watch.rate(static_cast<double>(frames) * s.format().columns_per_frame * s.format().pixels_per_column, threads);
+  std::filesystem::remove_all(dir);
+  return rate;
+}
+
+double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  return values.empty() ? 0.0 : values[values.size() / 2];
+}
+
+void run_scenario(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats, bool only_pipeline) {
+  WorkerPool pool(threads);
+  ForwardModelSetup setup;
+  setup.render = {s.metadata.beams, s.format(), s.profile.max_range_m, chain_of(s), 1, 1.0f};
+  setup.clock = {s.format().columns_per_frame, s.format().fps, 0, scenario.poses->start_s()};
+  const ForwardModel model(s.scene, *scenario.poses, setup, pool);
+  const FrameRenderer& renderer = model.renderer();
+  const auto rays =
+      only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m());
+  Rate raw16, raw1, cast, recorded;
+  PipelineRate pipe{};
+  const auto keep_best = [](Rate& best, const Rate& r) {
+    best.wall_per_s = std::max(best.wall_per_s, r.wall_per_s);
+    best.cpu_per_s = std::max(best.cpu_per_s, r.cpu_per_s);
+  };
+  std::vector<double> pipeline_ratios, record_ratios;
+  for (int r = 0; r < repeats; ++r) {
+    const Rate a = only_pipeline ? Rate{} : raw_packets(s, rays, threads);
+    const PipelineRate p = pipeline(s, model, frames, threads);
+    keep_best(pipe.pixels, p.pixels);
+    pipe.return_share = p.return_share;
+    if (only_pipeline) continue;
+    const Rate d = record_path(s, *scenario.poses, frames, threads);
+    keep_best(raw16, a);
+    keep_best(recorded, d);
+    pipeline_ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);
+    record_ratios.push_back(d.wall_per_s / a.wall_per_s);
+    keep_best(raw1, raw_single(s, rays, threads));
+    keep_best(cast, caster_only(s, *scenario.poses, renderer.geometry(), renderer.cast_range_m(), frames, threads));
+  }
+  const double real_time = 2048.0 * 128 * 10;  // pixels per second of a real sensor
+  std::printf("\n%s: returns %.0f %% of points\n", scenario.name, 100 * pipe.return_share);
+  std::printf("                                          wall clock   | CPU time x threads (idle-machine estimate)\n");
+  const auto row = [](const char* name, const Rate& r) {
+    std::printf("%-40s %8.2f M/s | %8.2f M/s\n", name, r.wall_per_s * 1e-6, r.cpu_per_s * 1e-6);
+  };
+  row("(a) raw Embree rtcIntersect16 coherent", raw16);
+  row("(b) raw Embree rtcIntersect1", raw1);
+  row("    ColumnCaster alone (rays)", cast);
+  row("(c) pipeline points (pixels)", pipe.pixels);
+  row("(d) record end to end (pixels)", recorded);
+  std::printf("    pipeline %.1fx real time, record %.1fx (wall)\n", pipe.pixels.wall_per_s / real_time,
+              recorded.wall_per_s / real_time);
+  if (!pipeline_ratios.empty()) {
+    std::printf("ratio (c) pipeline / raw (a): median %.3f (min %.3f, max %.3f; target 0.8)\n", median(pipeline_ratios),
+                *std::min_element(pipeline_ratios.begin(), pipeline_ratios.end()),
+                *std::max_element(pipeline_ratios.begin(), pipeline_ratios.end()));
+    std::printf("ratio (d) record / raw (a):   median %.3f (min %.3f, max %.3f; target 0.8)\n", median(record_ratios),
+                *std::min_element(record_ratios.begin(), record_ratios.end()),
+                *std::max_element(record_ratios.begin(), record_ratios.end()));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -205,53 +305,13 @@ int main(int argc, char** argv) {
   const bool only_pipeline = argc > 4 && std::string(argv[4]) == "pipeline";
   const int threads = threads_arg > 0 ? threads_arg : static_cast<int>(std::thread::hardware_concurrency());
   const Setup s;
-  WorkerPool pool(threads);
-  ForwardModelSetup setup;
-  setup.render = {s.metadata.beams, s.format(), s.profile.max_range_m,
-                  EffectChain::from_json(s.profile.effects, "os1-128"), 1, 1.0f};
-  setup.clock = {s.format().columns_per_frame, s.format().fps, 0, s.trajectory.start_s()};
-  const ForwardModel model(s.scene, s.poses, setup, pool);
-  const FrameRenderer& renderer = model.renderer();
-  const auto rays = only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, frames, renderer.cast_range_m());
-  Rate raw16, raw1, cast;
-  PipelineRate pipe{};
-  const auto keep_best = [](Rate& best, const Rate& r) {
-    best.wall_per_s = std::max(best.wall_per_s, r.wall_per_s);
-    best.cpu_per_s = std::max(best.cpu_per_s, r.cpu_per_s);
-  };
-  // (a) and (c) run back to back in every repeat, and each repeat gives its own ratio: the host's
-  // speed drifts by tens of percent between runs, much less within a pair. The ratio reported is
-  // the median over the repeats; the rates are the best of each.
-  std::vector<double> ratios;
-  for (int r = 0; r < repeats; ++r) {
-    const Rate a = only_pipeline ? Rate{} : raw_packets(s, rays, threads);
-    const PipelineRate p = pipeline(s, model, frames, threads);
-    if (!only_pipeline) {
-      keep_best(raw16, a);
-      ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);
-      keep_best(raw1, raw_single(s, rays, threads));
-      keep_best(cast, caster_only(s, renderer.geometry(), renderer.cast_range_m(), frames, threads));
-    }
-    keep_best(pipe.pixels, p.pixels);
-    pipe.return_share = p.return_share;
-  }
-  const double real_time = 2048.0 * 128 * 10;  // pixels per second of a real sensor
-  std::printf("OS1-128 2048x10, scenes/plant.glb (%zu triangles), %d frames, %d threads, best of %d\n",
+  std::printf("OS1-128 2048x10, scenes/plant.glb (%zu triangles), %d frames, %d threads, %d repeats\n",
               s.scene.triangle_count(), frames, threads, repeats);
-  std::printf("                                          wall clock   | CPU time x threads (idle-machine estimate)\n");
-  const auto row = [](const char* name, const Rate& r) {
-    std::printf("%-40s %8.2f M/s | %8.2f M/s\n", name, r.wall_per_s * 1e-6, r.cpu_per_s * 1e-6);
+  const Scenario scenarios[] = {
+      {"drone (scenes/plant_inspection.tum)",
+       std::make_unique<TrajectoryPoses>(Trajectory::load_tum(kSource / "scenes/plant_inspection.tum"))},
+      {"ground (pose \"15 9 1.7 0 0 0 1\")", std::make_unique<StaticPose>(parse_pose(kGroundPose))},
   };
-  row("(a) raw Embree rtcIntersect16 coherent", raw16);
-  row("(b) raw Embree rtcIntersect1", raw1);
-  row("    ColumnCaster alone (rays)", cast);
-  row("(c) pipeline points (pixels)", pipe.pixels);
-  std::printf("    returns %.0f %% of points; %.1fx real time (wall), %.1fx (CPU estimate)\n", 100 * pipe.return_share,
-              pipe.pixels.wall_per_s / real_time, pipe.pixels.cpu_per_s / real_time);
-  if (!ratios.empty()) {
-    std::sort(ratios.begin(), ratios.end());
-    std::printf("ratio pipeline / raw (a), wall clock, per repeat: median %.3f (min %.3f, max %.3f; target 0.8)\n",
-                ratios[ratios.size() / 2], ratios.front(), ratios.back());
-  }
+  for (const Scenario& scenario : scenarios) run_scenario(s, scenario, frames, threads, repeats, only_pipeline);
   return 0;
 }

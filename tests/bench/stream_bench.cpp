@@ -88,7 +88,7 @@ struct Reception {
   size_t wrong_size = 0;
   std::vector<int64_t> lateness_ns;          // read by the benchmark - scheduled
   std::vector<int64_t> arrival_lateness_ns;  // queued by the kernel (SO_TIMESTAMPNS) - scheduled
-  std::map<uint64_t, size_t> per_frame;  // frame_id -> packets
+  std::map<uint64_t, size_t> per_frame;      // frame_id -> packets
 };
 
 // Reads the header fields the loss and lateness figures need, straight from the bytes (4.3, 4.4;
@@ -182,12 +182,13 @@ int run(const Flags& flags) {
   });
   receive(lidar, format, flags.duration_s, reception);
   imu_drain.join();
-  const double cpu = (cpu_seconds(daemon.pid()) - cpu_before) / (static_cast<double>(monotonic_now_ns() - wall_before) * 1e-9);
+  const double cpu =
+      (cpu_seconds(daemon.pid()) - cpu_before) / (static_cast<double>(monotonic_now_ns() - wall_before) * 1e-9);
   const int code = daemon.stop();
 
   const size_t per_frame = static_cast<size_t>(format.packets_per_frame());
-  std::printf("stream_bench: %s %s %s, %.0f s, %zu B packets, %zu per frame\n", flags.profile.c_str(), flags.mode.c_str(),
-              flags.udp_profile.c_str(), flags.duration_s, format.lidar_packet_size(), per_frame);
+  std::printf("stream_bench: %s %s %s, %.0f s, %zu B packets, %zu per frame\n", flags.profile.c_str(),
+              flags.mode.c_str(), flags.udp_profile.c_str(), flags.duration_s, format.lidar_packet_size(), per_frame);
   std::printf("  received %zu lidar packets, lost %zu, wrong size %zu\n", reception.received,
               lost_packets(reception, per_frame), reception.wrong_size);
   std::printf("  arrival lateness (kernel stamp - schedule): p50 %.1f us, p99 %.1f us, max %.1f us\n",
@@ -200,9 +201,11 @@ int run(const Flags& flags) {
   std::printf("  daemon CPU: %.0f %% of one core\n", cpu * 100.0);
   std::smatch line;
   const std::string log = daemon.log();
-  if (std::regex_search(log, line, std::regex("streamer: stopped after[^\n]*"))) std::printf("  daemon: %s\n", line.str().c_str());
+  if (std::regex_search(log, line, std::regex("streamer: stopped after[^\n]*")))
+    std::printf("  daemon: %s\n", line.str().c_str());
   std::smatch warnings;
-  if (std::regex_search(log, warnings, std::regex("(warn|error)[^\n]*"))) std::printf("  daemon log: %s\n", warnings.str().c_str());
+  if (std::regex_search(log, warnings, std::regex("(warn|error)[^\n]*")))
+    std::printf("  daemon log: %s\n", warnings.str().c_str());
   std::printf("  daemon exit code %d\n", code);
   return code == 0 ? 0 : 1;
 }

@@ -41,7 +41,8 @@ TEST(RosDriver, ReinitWithANewLidarModeRestartsTheStream) {
   change.udp_profile_lidar = "RNG15_RFL8_NIR8";
   change.force_reinit = true;
   set_config(http, change);
-  const size_t new_size = packets_until_size_changes(lidar, first.format().lidar_packet_size(), std::chrono::seconds(5));
+  const size_t new_size =
+      packets_until_size_changes(lidar, first.format().lidar_packet_size(), std::chrono::seconds(5));
   EXPECT_NE(new_size, first.format().lidar_packet_size()) << "the stream did not change format";
 
   const Metadata after = parse(ros_driver_start(http, "1024x10", lidar.port(), imu.port()));

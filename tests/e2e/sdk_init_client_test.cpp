@@ -45,10 +45,8 @@ TEST_P(InitClient, StreamsCompleteScansOfTheRequestedFormat) {
 }
 
 INSTANTIATE_TEST_SUITE_P(ModesAndProfiles, InitClient,
-                         ::testing::Values(Case{"512x10", "RNG19_RFL8_SIG16_NIR16"},
-                                           Case{"1024x10", "RNG15_RFL8_NIR8"},
-                                           Case{"512x20", "LEGACY"},
-                                           Case{"1024x20", "RNG19_RFL8_SIG16_NIR16_DUAL"}),
+                         ::testing::Values(Case{"512x10", "RNG19_RFL8_SIG16_NIR16"}, Case{"1024x10", "RNG15_RFL8_NIR8"},
+                                           Case{"512x20", "LEGACY"}, Case{"1024x20", "RNG19_RFL8_SIG16_NIR16_DUAL"}),
                          [](const ::testing::TestParamInfo<Case>& test) {
                            return std::get<0>(test.param) + "_" + std::get<1>(test.param);
                          });

@@ -57,10 +57,12 @@ TEST(SensorPacketSource, TimestampsFollowTheTimestampMode) {
     expect_complete_scans(scans, metadata, 2);
     ASSERT_FALSE(scans.empty());
     const auto ts = static_cast<int64_t>(scans.back().scan.timestamp_ns.back());
-    const int64_t expected = mode == "TIME_FROM_PTP_1588"
-                                 ? std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                       std::chrono::system_clock::now().time_since_epoch()).count() + 37'000'000'000
-                                 : monotonic_now_ns();
+    const int64_t expected =
+        mode == "TIME_FROM_PTP_1588"
+            ? std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+                      .count() +
+                  37'000'000'000
+            : monotonic_now_ns();
     EXPECT_NEAR(static_cast<double>(ts - expected) * 1e-9, 0.0, 1.0) << mode;
   }
   EXPECT_EQ(daemon.stop(), 0) << daemon.log();

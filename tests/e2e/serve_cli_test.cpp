@@ -46,7 +46,8 @@ INSTANTIATE_TEST_SUITE_P(
     Flags, ServeFlags,
     ::testing::Values(BadFlag{"--lidar-mode 1000x7", "--lidar-mode"}, BadFlag{"--udp-profile FAST", "--udp-profile"},
                       BadFlag{"--address 300.1.2.3", "--address"}, BadFlag{"--http-port 70000", "--http-port"},
-                      BadFlag{"--scene /no/such/scene.glb", "--scene"}, BadFlag{"--profile no-such-sensor", "no-such-sensor"},
+                      BadFlag{"--scene /no/such/scene.glb", "--scene"},
+                      BadFlag{"--profile no-such-sensor", "no-such-sensor"},
                       BadFlag{"--trajectory /no/such.tum", "--trajectory"},  // excluded by the --pose of room_args
                       BadFlag{"--threads -3", "--threads"}, BadFlag{"--no-such-flag", "--no-such-flag"},
                       BadFlag{"--serial-number 12ab", "--serial-number"},

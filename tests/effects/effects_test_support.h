@@ -102,8 +102,8 @@ inline Moments truncated(double mu, double sigma, double a, double b) {
 
 // Checks a sample against a predicted mean, sd and detection probability with tolerances of
 // `z` standard errors (plus `extra_sd_rel` for approximations such as Sheppard's correction).
-inline void expect_agreement(const Sample& s, double mean, double sd, double p_detect, const std::string& what, double z = 5.0,
-                      double extra_sd_rel = 0.0) {
+inline void expect_agreement(const Sample& s, double mean, double sd, double p_detect, const std::string& what,
+                             double z = 5.0, double extra_sd_rel = 0.0) {
   const double k = static_cast<double>(s.detected);
   const double n = static_cast<double>(s.n);
   const double rate_se = std::sqrt(std::max(p_detect * (1.0 - p_detect), 1.0 / n) / n);

@@ -91,8 +91,8 @@ class TempFile {
  public:
   explicit TempFile(const std::string& suffix) {
     const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = "lidartwin_" + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" +
-                       info->name() + "_" + std::to_string(counter()++) + suffix;
+    std::string name = "lidartwin_" + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" + info->name() +
+                       "_" + std::to_string(counter()++) + suffix;
     for (char& c : name) c = (c == '/') ? '_' : c;  // parameterized test names hold '/'
     path_ = std::filesystem::temp_directory_path() / name;
   }

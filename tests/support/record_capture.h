@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
-#include <numbers>
 #include <string>
 #include <vector>
 
@@ -62,7 +62,8 @@ struct SdkIntrinsics {
     const double n = B[11] == 0 ? B[3] : std::hypot(B[3], B[11]);
     const Eigen::Vector3d u(std::cos(encoder + azimuth) * std::cos(altitude),
                             std::sin(encoder + azimuth) * std::cos(altitude), std::sin(altitude));
-    const Eigen::Vector3d o(B[3] * std::cos(encoder) - n * u.x(), B[3] * std::sin(encoder) - n * u.y(), B[11] - n * u.z());
+    const Eigen::Vector3d o(B[3] * std::cos(encoder) - n * u.x(), B[3] * std::sin(encoder) - n * u.y(),
+                            B[11] - n * u.z());
     const auto& T = lidar_to_sensor;
     Eigen::Matrix3d R;
     R << T[0], T[1], T[2], T[4], T[5], T[6], T[8], T[9], T[10];

@@ -44,25 +44,21 @@ class SdkHttp {
     return checked(http_.Get(("/api/v1/" + resource).c_str()), "GET", resource);
   }
   std::string post(const std::string& resource, const std::string& body) {
-    return checked(http_.Post(("/api/v1/" + resource).c_str(), body, "application/json"), "POST",
-                   resource);
+    return checked(http_.Post(("/api/v1/" + resource).c_str(), body, "application/json"), "POST", resource);
   }
   std::string put(const std::string& resource, const std::string& body) {
-    return checked(http_.Put(("/api/v1/" + resource).c_str(), body, "application/json"), "PUT",
-                   resource);
+    return checked(http_.Put(("/api/v1/" + resource).c_str(), body, "application/json"), "PUT", resource);
   }
   json get_json(const std::string& resource) { return json::parse(get(resource)); }
 
  private:
-  static std::string checked(const httplib::Result& result, const std::string& method,
-                             const std::string& resource) {
+  static std::string checked(const httplib::Result& result, const std::string& method, const std::string& resource) {
     if (!result) {
       throw std::runtime_error(method + " " + resource + ": " + httplib::to_string(result.error()));
     }
     if (result->status < 200 || result->status > 299) {
-      throw std::runtime_error("CurlClient::execute_request failed for url: [" + resource +
-                               "] with the code: [" + std::to_string(result->status) + "] " +
-                               result->body);
+      throw std::runtime_error("CurlClient::execute_request failed for url: [" + resource + "] with the code: [" +
+                               std::to_string(result->status) + "] " + result->body);
     }
     return result->body;
   }
@@ -79,8 +75,8 @@ inline std::string firmware_version(const std::string& image_rev) {
 }
 
 // 2.4 (a) with the FW >= 3.1 REST calls of SDK >= 0.16.
-inline void set_config(SdkHttp& http, const json& requested, bool udp_dest_auto,
-                       bool force_reinit = false, bool persist = false) {
+inline void set_config(SdkHttp& http, const json& requested, bool udp_dest_auto, bool force_reinit = false,
+                       bool persist = false) {
   json p = http.get_json("sensor/config");
   const json p0 = p;
   for (const auto& [key, value] : requested.items()) p[key] = value;
@@ -104,8 +100,7 @@ inline void set_config(SdkHttp& http, const json& requested, bool udp_dest_auto,
 
 // 2.4 (b): poll while INITIALIZING (the SDK sleeps 1 s; 20 ms here), user data, metadata.
 inline json collect_metadata(SdkHttp& http) {
-  for (int polls = 0; http.get_json("sensor/metadata/sensor_info").at("status") == "INITIALIZING";
-       ++polls) {
+  for (int polls = 0; http.get_json("sensor/metadata/sensor_info").at("status") == "INITIALIZING"; ++polls) {
     if (polls > 200) throw std::runtime_error("A timeout occurred while waiting for the sensor");
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
@@ -124,8 +119,7 @@ inline std::string auto_detected_udp_dest(SdkHttp& http) {
 }
 
 // 2.4 (a) as SDK <= 0.15 does it for every FW >= 2.4: the cmd API only (protocol doc 2.2).
-inline void set_config_cmd(SdkHttp& http, const json& requested, bool udp_dest_auto,
-                           bool persist) {
+inline void set_config_cmd(SdkHttp& http, const json& requested, bool udp_dest_auto, bool persist) {
   json p = json::parse(http.get("sensor/cmd/get_config_param?args=active"));
   const json p0 = p;
   for (const auto& [key, value] : requested.items()) p[key] = value;
@@ -135,8 +129,7 @@ inline void set_config_cmd(SdkHttp& http, const json& requested, bool udp_dest_a
   }
   if (p != p0) {
     // SensorHttpImp::execute compares these bodies byte for byte.
-    if (http.get("sensor/cmd/set_config_param?args=.+" + curl_escape(p.dump())) !=
-        "\"set_config_param\"") {
+    if (http.get("sensor/cmd/set_config_param?args=.+" + curl_escape(p.dump())) != "\"set_config_param\"") {
       throw std::runtime_error("set_config_param body");
     }
     if (http.get("sensor/cmd/reinitialize") != "{}") throw std::runtime_error("reinitialize body");

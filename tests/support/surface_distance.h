@@ -6,8 +6,8 @@
 #include <cmath>
 #include <limits>
 
-#include <Eigen/Core>
 #include <embree3/rtcore.h>
+#include <Eigen/Core>
 
 namespace lidartwin::test {
 

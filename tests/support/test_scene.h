@@ -61,8 +61,12 @@ inline nlohmann::json add_object(const TestObject& o, size_t index, std::vector<
   doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", pos_offset}, {"byteLength", positions.size() * 4}});
   doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", idx_offset}, {"byteLength", o.indices.size() * 4}});
   const size_t accessor = doc["accessors"].size();
-  doc["accessors"].push_back({{"bufferView", view}, {"componentType", 5126}, {"count", o.vertices.size()},
-                              {"type", "VEC3"}, {"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}});
+  doc["accessors"].push_back({{"bufferView", view},
+                              {"componentType", 5126},
+                              {"count", o.vertices.size()},
+                              {"type", "VEC3"},
+                              {"min", {lo.x(), lo.y(), lo.z()}},
+                              {"max", {hi.x(), hi.y(), hi.z()}}});
   doc["accessors"].push_back(
       {{"bufferView", view + 1}, {"componentType", 5125}, {"count", o.indices.size()}, {"type", "SCALAR"}});
   doc["materials"].push_back({{"name", o.name},
@@ -76,9 +80,10 @@ inline nlohmann::json add_object(const TestObject& o, size_t index, std::vector<
 }  // namespace detail
 
 inline void write_glb(const std::filesystem::path& path, const std::vector<TestObject>& objects) {
-  nlohmann::json doc = {{"asset", {{"version", "2.0"}}}, {"scene", 0}, {"bufferViews", nlohmann::json::array()},
-                        {"accessors", nlohmann::json::array()}, {"materials", nlohmann::json::array()},
-                        {"meshes", nlohmann::json::array()}, {"nodes", nlohmann::json::array()}};
+  nlohmann::json doc = {{"asset", {{"version", "2.0"}}},          {"scene", 0},
+                        {"bufferViews", nlohmann::json::array()}, {"accessors", nlohmann::json::array()},
+                        {"materials", nlohmann::json::array()},   {"meshes", nlohmann::json::array()},
+                        {"nodes", nlohmann::json::array()}};
   std::vector<uint8_t> bin;
   nlohmann::json node_ids = nlohmann::json::array();
   for (size_t i = 0; i < objects.size(); ++i) {

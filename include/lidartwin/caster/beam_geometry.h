@@ -46,7 +46,9 @@ class BeamGeometry {
   BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame);
   int columns() const { return columns_; }
   int rows() const { return rows_; }
-  const BeamRay& ray(int row, int measurement_id) const { return rays_[static_cast<size_t>(measurement_id * rows_ + row)]; }
+  const BeamRay& ray(int row, int measurement_id) const {
+    return rays_[static_cast<size_t>(measurement_id * rows_ + row)];
+  }
   // The point the SDK computes for a range in mm (7.1), in the sensor frame, metres.
   Eigen::Vector3d point(int row, int measurement_id, double range_mm) const;
   // A column's rays as packets_per_column() 16-lane packets.

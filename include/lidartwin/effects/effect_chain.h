@@ -40,7 +40,7 @@ class EffectChain {
 
   const std::vector<std::shared_ptr<const Effect>>& effects() const { return effects_; }
   // Copies of `effect` placed at the end or at `index`, with that position's stream id.
-  EffectChain with_effect(std::shared_ptr<const Effect> effect) const;       // appended
+  EffectChain with_effect(std::shared_ptr<const Effect> effect) const;  // appended
   EffectChain replacing(size_t index, std::shared_ptr<const Effect> effect) const;
 
  private:

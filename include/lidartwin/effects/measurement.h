@@ -24,8 +24,13 @@ struct Measurement {
 struct MeasuredColumn {
   MeasuredColumn() = default;
   explicit MeasuredColumn(size_t beams)
-      : range_m(beams), signal_photons(beams), near_ir_photons(beams), reflectivity(beams), range2_m(beams),
-        signal2_photons(beams), reflectivity2(beams) {}
+      : range_m(beams),
+        signal_photons(beams),
+        near_ir_photons(beams),
+        reflectivity(beams),
+        range2_m(beams),
+        signal2_photons(beams),
+        reflectivity2(beams) {}
 
   size_t size() const { return range_m.size(); }
   Measurement operator[](size_t beam) const {
@@ -63,10 +68,10 @@ struct Prediction {
 struct ColumnContext {
   uint64_t seed = 0;
   uint64_t frame = 0;
-  uint32_t column = 0;            // measurement id
-  float range_step_m = 0.001f;    // 0.001 (RNG19, LEGACY) or 0.008 (RNG15 profiles)
+  uint32_t column = 0;          // measurement id
+  float range_step_m = 0.001f;  // 0.001 (RNG19, LEGACY) or 0.008 (RNG15 profiles)
   float max_wire_range_m = 524.287f;
-  float signal_gain = 1.0f;       // signal_multiplier and lidar-mode integration (E18)
+  float signal_gain = 1.0f;  // signal_multiplier and lidar-mode integration (E18)
 };
 
 }  // namespace lidartwin

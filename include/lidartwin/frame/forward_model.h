@@ -22,8 +22,8 @@ namespace lidartwin {
 
 struct ForwardModelSetup {
   RenderSetup render;
-  SensorClock clock;       // columns_per_frame and fps must match render.format
-  uint32_t init_id = 0;    // header fields of every packet (4.3)
+  SensorClock clock;     // columns_per_frame and fps must match render.format
+  uint32_t init_id = 0;  // header fields of every packet (4.3)
   uint64_t prod_sn = 0;
 };
 

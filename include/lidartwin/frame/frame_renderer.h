@@ -21,20 +21,20 @@ namespace lidartwin {
 
 // What rendering needs to know of a sensor, as configured.
 struct RenderSetup {
-  BeamIntrinsics beams;        // as served to clients (lidar_frame_azimuth_offset rotates them)
+  BeamIntrinsics beams;  // as served to clients (lidar_frame_azimuth_offset rotates them)
   LidarDataFormat format;
   double max_range_m = 100.0;  // the profile's range limit: the cast looks 1 m beyond it
   EffectChain chain;
   uint64_t seed = 0;
-  float signal_gain = 1.0f;    // signal_multiplier
+  float signal_gain = 1.0f;  // signal_multiplier
 };
 
 // The columns of one frame, indexed by measurement id: where the sensor was when each was observed,
 // and whether it was observed at all (in the column window, with a pose to cast from).
 struct FrameColumns {
-  uint64_t frame_index = 0;      // keys the noise (with seed, column, beam)
-  std::vector<Pose> poses;       // [W] world_from_sensor
-  std::vector<uint8_t> observed; // [W] 0: no cast, zero pixels
+  uint64_t frame_index = 0;       // keys the noise (with seed, column, beam)
+  std::vector<Pose> poses;        // [W] world_from_sensor
+  std::vector<uint8_t> observed;  // [W] 0: no cast, zero pixels
 };
 
 class FrameRenderer {

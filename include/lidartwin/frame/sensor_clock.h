@@ -21,7 +21,7 @@ struct SensorClock {
   // Frame k starts k * 1e9 / fps ns after the origin (exact for 5, 10 and 20 Hz); column m is
   // observed m * 1e9 / (W * fps) after its frame starts (6.1), rounded down, so times never drift.
   uint64_t frame_period_ns() const;
-  uint64_t frame_start_ns(uint64_t frame) const;  // from the origin
+  uint64_t frame_start_ns(uint64_t frame) const;        // from the origin
   uint64_t column_offset_ns(int measurement_id) const;  // from the frame's start
   uint64_t column_timestamp_ns(uint64_t frame, int measurement_id) const;
   // A packet is due when its last column has been observed (protocol doc 1 item 12), so packets of

@@ -12,8 +12,8 @@
 namespace lidartwin {
 
 struct HttpServerOptions {
-  std::string address = "127.0.0.1";  // one sensor per loopback address (DESIGN.md)
-  int port = 80;                      // as on a real sensor; 0 = any free port
+  std::string address = "127.0.0.1";     // one sensor per loopback address (DESIGN.md)
+  int port = 80;                         // as on a real sensor; 0 = any free port
   std::size_t max_body_bytes = 1 << 20;  // a full config is ~1.5 KB (protocol doc 2.1)
   std::chrono::seconds read_timeout{5};
   std::chrono::seconds write_timeout{5};
@@ -27,8 +27,7 @@ struct HttpServerOptions {
 // protocol doc 2.1); error_number() is the errno of bind().
 class BindError : public std::runtime_error {
  public:
-  BindError(const std::string& message, int error_number)
-      : std::runtime_error(message), error_number_(error_number) {}
+  BindError(const std::string& message, int error_number) : std::runtime_error(message), error_number_(error_number) {}
   int error_number() const { return error_number_; }
 
  private:

@@ -25,15 +25,14 @@ struct ApiRequest {
 
 struct ApiResponse {
   int status = 200;
-  std::string body;  // always JSON
+  std::string body;                                          // always JSON
   std::vector<std::pair<std::string, std::string>> headers;  // extra headers, e.g. Allow
 };
 
 // Thrown by endpoints: answered with `status` and {"error": what()}. (InputError -> 400.)
 class HttpError : public std::runtime_error {
  public:
-  HttpError(int status, const std::string& message)
-      : std::runtime_error(message), status_(status) {}
+  HttpError(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
   int status() const { return status_; }
 
  private:

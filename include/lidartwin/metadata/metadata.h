@@ -64,8 +64,7 @@ nlohmann::json default_config_params();
 // (W and fps from lidar_mode, columns_per_packet, profiles, column_window from azimuth_window,
 // pixel_shift_by_row = round(az * W / 360)), imu_data_format and calibration_status.
 // Throws InputError naming the config key if config_params cannot describe a stream.
-Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beams,
-                       const nlohmann::json& config_params);
+Metadata make_metadata(const SensorInfo& sensor_info, const BeamIntrinsics& beams, const nlohmann::json& config_params);
 
 // The document GET /api/v1/sensor/metadata serves: all 7 sections plus imu_data_format.
 nlohmann::json to_nested_json(const Metadata& metadata);

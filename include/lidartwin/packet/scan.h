@@ -33,9 +33,9 @@ struct Scan {
 
   int width = 0;
   int height = 0;
-  PacketHeader header;                  // of the frame (from its first packet when decoded)
-  std::vector<uint64_t> timestamp_ns;   // [W], column timestamps
-  std::vector<uint32_t> status;         // [W], bit 0 = valid; LEGACY valid = 0xFFFFFFFF
+  PacketHeader header;                    // of the frame (from its first packet when decoded)
+  std::vector<uint64_t> timestamp_ns;     // [W], column timestamps
+  std::vector<uint32_t> status;           // [W], bit 0 = valid; LEGACY valid = 0xFFFFFFFF
   std::vector<uint64_t> packet_received;  // [W / columns_per_packet], non-zero once a packet arrived
   std::array<std::vector<uint32_t>, kChannelFieldCount> channels;
 
@@ -48,8 +48,12 @@ struct Scan {
     return {channels[static_cast<int>(f)].data() + static_cast<size_t>(c) * static_cast<size_t>(height),
             static_cast<size_t>(height)};
   }
-  uint32_t& at(ChannelField f, int c, int r) { return channels[static_cast<int>(f)][static_cast<size_t>(c * height + r)]; }
-  uint32_t at(ChannelField f, int c, int r) const { return channels[static_cast<int>(f)][static_cast<size_t>(c * height + r)]; }
+  uint32_t& at(ChannelField f, int c, int r) {
+    return channels[static_cast<int>(f)][static_cast<size_t>(c * height + r)];
+  }
+  uint32_t at(ChannelField f, int c, int r) const {
+    return channels[static_cast<int>(f)][static_cast<size_t>(c * height + r)];
+  }
 };
 
 }  // namespace lidartwin

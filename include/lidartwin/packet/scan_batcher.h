@@ -15,11 +15,11 @@
 namespace lidartwin {
 
 struct BatchedFrame {
-  Scan scan;                     // columns of packets that did not arrive stay zero (no points)
+  Scan scan;  // columns of packets that did not arrive stay zero (no points)
   uint32_t frame_id = 0;
-  size_t packets = 0;            // lidar packets batched into it
-  bool complete = false;         // every packet the window sends arrived (released at once)
-  std::set<uint32_t> init_ids;   // as the packets carried them (one for a healthy stream)
+  size_t packets = 0;           // lidar packets batched into it
+  bool complete = false;        // every packet the window sends arrived (released at once)
+  std::set<uint32_t> init_ids;  // as the packets carried them (one for a healthy stream)
   std::set<uint64_t> prod_sns;
 };
 

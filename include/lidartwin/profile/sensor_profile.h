@@ -15,10 +15,10 @@ struct SensorProfile {
   std::string name;       // file stem, e.g. "os1-64"
   std::string prod_line;  // what sensor_info.prod_line reports, e.g. "OS-1-64"
   std::string prod_pn;
-  std::string source;     // where the beam intrinsics came from (a sample file, a paper)
+  std::string source;  // where the beam intrinsics came from (a sample file, a paper)
   BeamIntrinsics beams;
-  double min_range_m = 0.3;   // below this: no return
-  double max_range_m = 100.0; // beyond this: no return
+  double min_range_m = 0.3;             // below this: no return
+  double max_range_m = 100.0;           // beyond this: no return
   double beam_divergence_rad = 0.0023;  // FWHM
   std::vector<std::string> lidar_modes{"512x10", "512x20", "1024x10", "1024x20", "2048x10"};
   nlohmann::json effects = nlohmann::json::array();  // the effect chain, parsed by effects/

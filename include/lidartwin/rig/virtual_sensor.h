@@ -33,13 +33,13 @@ struct RigContext {
 
 // Who one sensor is and how it is reached.
 struct VirtualSensorSetup {
-  SensorIdentity identity;   // product, serial number and beams as served
-  SensorOptions sensor;      // state file, config overrides
-  HttpServerOptions http;    // its address and port
-  StreamerOptions streamer;  // its source address, --record, pacing
+  SensorIdentity identity;     // product, serial number and beams as served
+  SensorOptions sensor;        // state file, config overrides
+  HttpServerOptions http;      // its address and port
+  StreamerOptions streamer;    // its source address, --record, pacing
   double max_range_m = 100.0;  // the profile's range limit (casting stops 1 m beyond it)
-  EffectChain chain;         // the profile's physics
-  uint64_t seed = 0;         // noise seed
+  EffectChain chain;           // the profile's physics
+  uint64_t seed = 0;           // noise seed
 };
 
 class VirtualSensor {

@@ -53,10 +53,9 @@ class Scene {
   // One ray with rtcIntersect1, for tools and tests (the emulator casts 16-ray packets in
   // `caster`): the first surface with near_m <= distance <= far_m, or nothing.
   std::optional<SceneHit> first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
-                                    float near_m = 0.0f,
-                                    float far_m = std::numeric_limits<float>::infinity()) const;
+                                    float near_m = 0.0f, float far_m = std::numeric_limits<float>::infinity()) const;
   size_t triangle_count() const;
-  size_t geometry_count() const;  // one Embree geometry per placed glTF primitive
+  size_t geometry_count() const;       // one Embree geometry per placed glTF primitive
   Eigen::AlignedBox3d bounds() const;  // world frame
 
  private:

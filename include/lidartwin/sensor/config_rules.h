@@ -22,15 +22,13 @@ struct ConfigLimits {
 std::vector<std::string> config_errors(const nlohmann::json& config, const ConfigLimits& limits);
 
 // Throws InputError("<source>: <all problems joined by "; ">") unless config_errors is empty.
-void validate_config(const nlohmann::json& config, const ConfigLimits& limits,
-                     const std::string& source);
+void validate_config(const nlohmann::json& config, const ConfigLimits& limits, const std::string& source);
 
 // The value of udp_dest / udp_dest_zm / udp_ip as written by a client, resolved at write time
 // (protocol doc 1.6, 2.7): "@auto" becomes the HTTP peer's IPv4 address, a host name its first
 // IPv4 address, an IPv4 literal stays as it is. An IPv4-mapped IPv6 peer ("::ffff:a.b.c.d") maps to
 // a.b.c.d and "::1" to 127.0.0.1, because the streamer sends IPv4 only. Throws InputError naming
 // `key` when the value cannot become an IPv4 address (empty `peer_ip` = no HTTP peer).
-std::string resolve_udp_dest(const nlohmann::json& value, const std::string& key,
-                             const std::string& peer_ip);
+std::string resolve_udp_dest(const nlohmann::json& value, const std::string& key, const std::string& peer_ip);
 
 }  // namespace lidartwin

@@ -11,16 +11,16 @@ namespace lidartwin {
 
 // Immutable snapshot of the active configuration, replaced as a whole on every reinit.
 struct StreamConfig {
-  uint64_t generation = 0;      // +1 per reinit: the streamer restarts when it changes
-  Metadata metadata;            // exactly what GET /api/v1/sensor/metadata serves
+  uint64_t generation = 0;                        // +1 per reinit: the streamer restarts when it changes
+  Metadata metadata;                              // exactly what GET /api/v1/sensor/metadata serves
   std::array<uint8_t, 4> udp_dest{127, 0, 0, 1};  // resolved IPv4 destination
   uint16_t udp_port_lidar = 7502;                 // 0 = lidar stream disabled
   uint16_t udp_port_imu = 7503;                   // 0 = IMU stream disabled
-  bool streaming = true;        // operating_mode NORMAL (false in STANDBY)
+  bool streaming = true;                          // operating_mode NORMAL (false in STANDBY)
   std::string timestamp_mode = "TIME_FROM_INTERNAL_OSC";
   float signal_multiplier = 1.0f;
-  uint32_t init_id = 0;         // = metadata.sensor_info.initialization_id (24 bits)
-  uint64_t prod_sn = 0;         // numeric prod_sn (40 bits)
+  uint32_t init_id = 0;  // = metadata.sensor_info.initialization_id (24 bits)
+  uint64_t prod_sn = 0;  // numeric prod_sn (40 bits)
 };
 
 // Reported by the streamer; served by telemetry and logged when casting cannot keep up.
@@ -28,10 +28,10 @@ struct StreamStats {
   uint64_t lidar_packets_sent = 0;
   uint64_t imu_packets_sent = 0;
   uint64_t frames_sent = 0;
-  uint64_t late_packets = 0;       // sent more than the lateness threshold after their deadline
-  uint64_t render_stalls = 0;      // packets whose columns were not rendered in time
+  uint64_t late_packets = 0;   // sent more than the lateness threshold after their deadline
+  uint64_t render_stalls = 0;  // packets whose columns were not rendered in time
   double max_lateness_us = 0.0;
-  double render_load = 0.0;        // render time / real time over the last second (1.0 = saturated)
+  double render_load = 0.0;  // render time / real time over the last second (1.0 = saturated)
 };
 
 }  // namespace lidartwin

@@ -25,10 +25,10 @@ struct StreamCounters;
 
 struct StreamerOptions {
   std::array<uint8_t, 4> source_address{127, 0, 0, 1};  // the sensor's own address (item 8)
-  std::filesystem::path record_dir;    // non-empty: capture.pcap + metadata.json of what is sent
-  int frames_ahead = 2;                // how far casting may run ahead of the send clock
-  double start_delay_s = 0.25;         // from a reinit to frame 0: time to cast the first packets
-  int render_nice = 0;                 // nice value of the render-ahead worker (the send clock keeps 0)
+  std::filesystem::path record_dir;                     // non-empty: capture.pcap + metadata.json of what is sent
+  int frames_ahead = 2;                                 // how far casting may run ahead of the send clock
+  double start_delay_s = 0.25;                          // from a reinit to frame 0: time to cast the first packets
+  int render_nice = 0;  // nice value of the render-ahead worker (the send clock keeps 0)
   // The send clock wakes this early and spins to each lidar deadline: a thread's wake-up takes
   // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10).
   int spin_us = 100;
@@ -38,7 +38,7 @@ struct StreamerOptions {
 // frame 0 is observed at start_steady_ns on the host's steady clock, its column 0 stamped origin_ns.
 // Throws InputError naming a format the packet encoder cannot carry.
 using ModelFactory = std::function<std::unique_ptr<ForwardModel>(const StreamConfig& config, int64_t start_steady_ns,
-                                                                  uint64_t origin_ns)>;
+                                                                 uint64_t origin_ns)>;
 
 // Column timestamps (6.3): TIME_FROM_INTERNAL_OSC and TIME_FROM_SYNC_PULSE_IN carry the host's
 // CLOCK_MONOTONIC in ns (time since boot, as a real sensor's oscillator counts), so the timestamp
@@ -85,10 +85,10 @@ class Streamer {
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
   asio::steady_timer stats_timer_;
   mutable std::mutex snapshot_mutex_;
-  StreamStats snapshot_;  // guarded by snapshot_mutex_
-  std::shared_ptr<const StreamConfig> config_;                // the one being streamed
-  std::shared_ptr<streamer_detail::StreamSession> session_;   // null in STANDBY or when stopped
-  int64_t next_stats_ns_ = 0;  // steady clock
+  StreamStats snapshot_;                                     // guarded by snapshot_mutex_
+  std::shared_ptr<const StreamConfig> config_;               // the one being streamed
+  std::shared_ptr<streamer_detail::StreamSession> session_;  // null in STANDBY or when stopped
+  int64_t next_stats_ns_ = 0;                                // steady clock
   uint64_t stats_ticks_ = 0;
   uint64_t warned_stalls_ = 0;
   uint64_t warned_skips_ = 0;

@@ -21,7 +21,7 @@ namespace lidartwin::e2e {
 // Receives until `count` scans were released (the first, possibly partial one, is skipped) or the
 // timeout passes. Checks the source address of every datagram when `source` is given.
 inline std::vector<BatchedFrame> receive_scans(UdpSocket& socket, ScanBatcher& batcher, size_t count,
-                                                std::chrono::seconds timeout, const std::string& source = "") {
+                                               std::chrono::seconds timeout, const std::string& source = "") {
   std::vector<BatchedFrame> scans;
   bool first = true;
   const auto deadline = std::chrono::steady_clock::now() + timeout;

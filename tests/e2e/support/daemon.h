@@ -19,7 +19,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-
 namespace lidartwin::e2e {
 
 inline std::filesystem::path scratch_dir() {
@@ -39,8 +38,8 @@ class Daemon {
       : address_(std::move(address)) {
     static int counter = 0;
     log_path_ = scratch_dir() / ("daemon-" + address_ + "-" + std::to_string(++counter) + ".log");
-    std::vector<std::string> argv{LIDARTWIN_BINARY, "serve", "--address", address_, "--http-port",
-                                  std::to_string(http_port)};
+    std::vector<std::string> argv{LIDARTWIN_BINARY, "serve",       "--address",
+                                  address_,         "--http-port", std::to_string(http_port)};
     argv.insert(argv.end(), args.begin(), args.end());
     spawn(argv);
     wait_until_ready(timeout);

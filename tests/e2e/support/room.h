@@ -18,15 +18,15 @@ inline std::filesystem::path room_scene() {
   using test::quad;
   const float x0 = -4, x1 = 4, y0 = -3, y1 = 3, z0 = 0, z1 = 3;
   test::write_glb(path, {
-      quad("floor", {x0, y0, z0}, {x1, y0, z0}, {x1, y1, z0}, {x0, y1, z0}, 0.3f),
-      quad("ceiling", {x0, y0, z1}, {x0, y1, z1}, {x1, y1, z1}, {x1, y0, z1}, 0.6f),
-      quad("wall_north", {x0, y1, z0}, {x1, y1, z0}, {x1, y1, z1}, {x0, y1, z1}, 0.5f),
-      quad("wall_south", {x0, y0, z0}, {x0, y0, z1}, {x1, y0, z1}, {x1, y0, z0}, 0.5f),
-      quad("wall_east", {x1, y0, z0}, {x1, y0, z1}, {x1, y1, z1}, {x1, y1, z0}, 0.8f),
-      quad("wall_west", {x0, y0, z0}, {x0, y1, z0}, {x0, y1, z1}, {x0, y0, z1}, 0.2f),
-      test::box("pillar", {1.5f, 1.0f, 0.0f}, {1.9f, 1.4f, 3.0f}, 0.7f),
-      test::box("crate", {-2.0f, -1.5f, 0.0f}, {-1.2f, -0.7f, 0.8f}, 0.4f),
-  });
+                            quad("floor", {x0, y0, z0}, {x1, y0, z0}, {x1, y1, z0}, {x0, y1, z0}, 0.3f),
+                            quad("ceiling", {x0, y0, z1}, {x0, y1, z1}, {x1, y1, z1}, {x1, y0, z1}, 0.6f),
+                            quad("wall_north", {x0, y1, z0}, {x1, y1, z0}, {x1, y1, z1}, {x0, y1, z1}, 0.5f),
+                            quad("wall_south", {x0, y0, z0}, {x0, y0, z1}, {x1, y0, z1}, {x1, y0, z0}, 0.5f),
+                            quad("wall_east", {x1, y0, z0}, {x1, y0, z1}, {x1, y1, z1}, {x1, y1, z0}, 0.8f),
+                            quad("wall_west", {x0, y0, z0}, {x0, y1, z0}, {x0, y1, z1}, {x0, y0, z1}, 0.2f),
+                            test::box("pillar", {1.5f, 1.0f, 0.0f}, {1.9f, 1.4f, 3.0f}, 0.7f),
+                            test::box("crate", {-2.0f, -1.5f, 0.0f}, {-1.2f, -0.7f, 0.8f}, 0.4f),
+                        });
   return path;
 }
 

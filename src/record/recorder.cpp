@@ -1,6 +1,6 @@
 // The frame loop of `lidartwin record`: the forward model renders and encodes frame k + 1 while
 // frame k's packets, and the IMU packets due among them, are written in time order.
-#include "cli/recorder.h"
+#include "lidartwin/record/recorder.h"
 
 #include <array>
 #include <cmath>
@@ -14,7 +14,7 @@
 #include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/pcap/pcap.h"
 
-namespace lidartwin::cli {
+namespace lidartwin {
 namespace {
 
 constexpr uint16_t kLidarPort = 7502;  // the FW defaults (protocol doc 2.6)
@@ -71,8 +71,7 @@ void write_metadata(const Metadata& metadata, const std::filesystem::path& path)
 ForwardModelSetup model_setup(const Recording& recording) {
   const Metadata& metadata = recording.metadata;
   ForwardModelSetup setup;
-  setup.render = {metadata.beams,         metadata.format, recording.max_range_m, recording.chain,
-                  recording.seed,         1.0f};
+  setup.render = {metadata.beams, metadata.format, recording.max_range_m, recording.chain, recording.seed, 1.0f};
   setup.clock.columns_per_frame = metadata.format.columns_per_frame;
   setup.clock.fps = metadata.format.fps;
   setup.clock.pose_origin_s = recording.poses.start_s();
@@ -105,8 +104,9 @@ void record(const Recording& recording, const std::function<void(int frames_done
     progress(k + 1);
   }
   if (writing.valid()) writing.get();
-  capture.write_imu_until(model.clock().origin_ns + model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
+  capture.write_imu_until(model.clock().origin_ns +
+                          model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
   write_tum(recording.out_dir / "poses.tum", poses);
 }
 
-}  // namespace lidartwin::cli
+}  // namespace lidartwin

@@ -1,6 +1,7 @@
 #pragma once
-// `lidartwin record`'s engine: has the forward model render frames as fast as the machine allows
-// and writes them: capture.pcap (lidar on 7502, LEGACY IMU on 7503), metadata.json and poses.tum.
+// A capture recorded offline, as `lidartwin record` makes it: the forward model renders frames as
+// fast as the machine allows and they are written as a real sensor's capture: capture.pcap (lidar on 7502, LEGACY IMU
+// on 7503), metadata.json and poses.tum.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -10,7 +11,7 @@
 #include "lidartwin/pose/pose_source.h"
 #include "lidartwin/scene/scene.h"
 
-namespace lidartwin::cli {
+namespace lidartwin {
 
 struct Recording {
   const Scene& scene;
@@ -34,4 +35,4 @@ struct Recording {
 // progress(frames_done) is called after each frame.
 void record(const Recording& recording, const std::function<void(int frames_done)>& progress);
 
-}  // namespace lidartwin::cli
+}  // namespace lidartwin
