@@ -44,9 +44,7 @@ struct ForwardModel::Impl {
 
   // Columns [first, last) of frame k: from where each was observed, and whether at all (in the
   // column window, 6.4, with a pose the source stands behind).
-  void locate_columns(uint64_t frame, int first, int last, FrameColumns& columns) const {
-    columns.frame_index = frame;
-    const PoseSpan span = poses.span();
+  void locate_columns(uint64_t frame, int first, int last, const PoseSpan& span, FrameColumns& columns) const {
     for (int m = first; m < last; ++m) {
       const auto column = static_cast<size_t>(m);
       const double time_s = clock.column_pose_time_s(frame, m);
@@ -70,13 +68,20 @@ struct ForwardModel::Impl {
     const int first = firsts[begin];
     const int last = firsts[end - 1] + cpp;
     assert(last - first == static_cast<int>(end - begin) * cpp);
-    locate_columns(frame, first, last, out.columns);
-    stamp_columns(frame, first, last, &out.columns.observed, out.scan);
+    out.columns.frame_index = frame;
+    const PoseSpan span = poses.span();  // one answer for the whole run: a live span may grow meanwhile
     const PacketHeader header = header_of(frame);
-    renderer.render(out.columns, first, last, out.scan, [&](int block_begin, int) {
+    // Each packet's columns are located and stamped by the worker that casts them, and the packet
+    // is encoded by it as soon as its pixels are in.
+    const auto prepare = [&](int block_begin, int block_end) {
+      locate_columns(frame, block_begin, block_end, span, out.columns);
+      stamp_columns(frame, block_begin, block_end, &out.columns.observed, out.scan);
+    };
+    const auto encode = [&](int block_begin, int) {
       const int index = index_of_first[static_cast<size_t>(block_begin / cpp)];
       packets.encode(header, out.scan, block_begin, slot(out, static_cast<size_t>(index)));
-    });
+    };
+    renderer.render(out.columns, first, last, out.scan, encode, prepare);
   }
 
   const PoseSource& poses;

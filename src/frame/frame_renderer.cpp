@@ -93,7 +93,7 @@ const BeamGeometry& FrameRenderer::geometry() const { return impl_->geometry; }
 float FrameRenderer::cast_range_m() const { return impl_->cast_range; }
 
 void FrameRenderer::render(const FrameColumns& columns, int first, int last, Scan& scan,
-                           const BlockDone& block_done) const {
+                           const BlockHook& done, const BlockHook& prepare) const {
   const Impl& impl = *impl_;
   const LidarDataFormat& format = impl.setup.format;
   assert(scan.width == format.columns_per_frame && scan.height == format.pixels_per_column);
@@ -107,8 +107,9 @@ void FrameRenderer::render(const FrameColumns& columns, int first, int last, Sca
   impl.pool.run(blocks, [&](int worker, int item) {
     const int begin = std::max(first, (first_block + item) * block);
     const int end = std::min(last, (first_block + item + 1) * block);
+    if (prepare) prepare(begin, end);
     impl.render_block(columns, begin, end, scan, impl.scratch[static_cast<size_t>(worker)]);
-    if (block_done) block_done(begin, end);
+    if (done) done(begin, end);
   });
 }
 

@@ -43,14 +43,15 @@ class FrameRenderer {
   FrameRenderer(const Scene& scene, RenderSetup setup, WorkerPool& pool);
   ~FrameRenderer();
 
-  // Renders the pixels of columns [first, last) into scan (timestamps and status untouched).
-  // block_done(begin, end), if given, is called on a worker thread as soon as the columns of one
-  // packet ([begin, end): columns_per_packet-aligned, clipped to [first, last)) are in scan, so
-  // packets can be encoded in parallel with the cast; blocks finish in any order. Output is
-  // identical for any thread count.
-  using BlockDone = std::function<void(int begin, int end)>;
-  void render(const FrameColumns& columns, int first, int last, Scan& scan,
-              const BlockDone& block_done = nullptr) const;
+  // Renders the pixels of columns [first, last) into scan (timestamps and status untouched), a
+  // packet's columns at a time ([begin, end): columns_per_packet-aligned, clipped to [first, last)),
+  // blocks on worker threads in any order. On the block's worker, prepare(begin, end), if given,
+  // runs first and may fill columns' poses and observed flags for [begin, end) (so locating columns
+  // runs in parallel too); done(begin, end), if given, runs once the block's pixels are in scan, so
+  // packets are encoded in parallel with the cast. Output is identical for any thread count.
+  using BlockHook = std::function<void(int begin, int end)>;
+  void render(const FrameColumns& columns, int first, int last, Scan& scan, const BlockHook& done = nullptr,
+              const BlockHook& prepare = nullptr) const;
 
   const LidarDataFormat& format() const;
   const BeamGeometry& geometry() const;
