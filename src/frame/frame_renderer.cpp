@@ -92,8 +92,8 @@ const LidarDataFormat& FrameRenderer::format() const { return impl_->setup.forma
 const BeamGeometry& FrameRenderer::geometry() const { return impl_->geometry; }
 float FrameRenderer::cast_range_m() const { return impl_->cast_range; }
 
-void FrameRenderer::render(const FrameColumns& columns, int first, int last, Scan& scan,
-                           const BlockHook& done, const BlockHook& prepare) const {
+void FrameRenderer::render(const FrameColumns& columns, int first, int last, Scan& scan, const BlockHook& done,
+                           const BlockHook& prepare) const {
   const Impl& impl = *impl_;
   const LidarDataFormat& format = impl.setup.format;
   assert(scan.width == format.columns_per_frame && scan.height == format.pixels_per_column);
