@@ -381,4 +381,11 @@ TEST(ConfigRules, FirmwareDefaultsAndTheProtocolDocExampleAreValid) {
   EXPECT_THAT(lidartwin::config_errors(config, {}), testing::IsEmpty());
 }
 
+TEST(ConfigRules, ChoicesAreListedQuoted) {
+  auto config = lidartwin::default_config_params();
+  config["udp_profile_imu"] = "FAST";
+  EXPECT_THAT(lidartwin::config_errors(config, {}),
+              testing::ElementsAre(testing::HasSubstr(R"(must be one of "LEGACY", "ACCEL32_GYRO32_NMEA", "OFF")")));
+}
+
 }  // namespace

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <string>
 #include <utility>
+#include <vector>
+
+#include <fmt/ranges.h>
 
 namespace lidartwin::metadata_detail {
 namespace {
@@ -58,20 +61,16 @@ void check_section_types(const nlohmann::json& root, bool legacy, const JsonRead
 
 SectionedDocument::SectionedDocument(const nlohmann::json& root, const JsonReader& reader) : root_(root) {
   if (!root.is_object()) reader.fail("", "a JSON object", describe(root));
-  std::string missing;
-  size_t present = 0;
+  std::vector<std::string_view> missing;
   for (std::string_view section : kNestedSections) {
-    if (root.contains(section)) {
-      ++present;
-    } else {
-      missing += (missing.empty() ? "/" : ", /") + std::string(section);
-    }
+    if (!root.contains(section)) missing.push_back(section);
   }
   // Protocol doc 3.1: a partial set is a critical error, one issue per missing section.
-  if (present != 0 && present != kNestedSections.size()) {
-    reader.fail("", "a nested metadata document needs all 7 sections; missing " + missing);
+  if (!missing.empty() && missing.size() != kNestedSections.size()) {
+    reader.fail("",
+                fmt::format("a nested metadata document needs all 7 sections; missing /{}", fmt::join(missing, ", /")));
   }
-  legacy_ = present == 0;
+  legacy_ = missing.size() == kNestedSections.size();
   check_section_types(root, legacy_, reader);
 }
 

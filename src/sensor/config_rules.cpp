@@ -24,11 +24,8 @@ using Check = std::function<std::optional<std::string>(const json&)>;
 
 std::string shown(const json& value) { return json_reader::describe(value); }
 
-std::string quoted_list(const std::vector<std::string>& names) {
-  std::string list;
-  for (const auto& name : names) list += (list.empty() ? "\"" : ", \"") + name + "\"";
-  return list;
-}
+// "a", "b", "c" (fmt's debug format quotes each name).
+std::string quoted_list(const std::vector<std::string>& names) { return fmt::format("{:?}", fmt::join(names, ", ")); }
 
 std::optional<std::string> expected(const std::string& what, const json& value) {
   return "must be " + what + ", got " + shown(value);
