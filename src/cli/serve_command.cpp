@@ -44,9 +44,9 @@ int report_bind_error(const BindError& error) {
 }
 
 // Runs until SIGINT/SIGTERM: the signal stops the sensor's streamer, which leaves the io_context
-// without work, so run() returns; then the sensor's HTTP server and stats stop.
-int run_daemon(asio::io_context& io, VirtualSensor& sensor) {
-  asio::signal_set signals(io, SIGINT, SIGTERM);
+// without work, so run() returns; then the sensor's HTTP server and stats stop. `signals` was made
+// before the sensor started answering, so a signal sent as soon as it answers is not lost.
+int run_daemon(asio::io_context& io, asio::signal_set& signals, VirtualSensor& sensor) {
   signals.async_wait([&sensor](const asio::error_code& error, int signal_number) {
     if (error) return;
     spdlog::info("serve: {} received, stopping", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
@@ -114,6 +114,9 @@ int serve(const ServeFlags& flags) {
                scene_file.string(), scene.triangle_count(), trajectory.duration_s());
 
   asio::io_context io;
+  // From here SIGINT/SIGTERM are caught (and held until run_daemon waits for them): a client or
+  // supervisor that stops the daemon as soon as it answers gets a clean stop, not exit 143.
+  asio::signal_set signals(io, SIGINT, SIGTERM);
   WorkerPool pool(flags.threads, setup.streamer.render_nice);
   const RigContext rig{io, scene, poses, pool, steady_now_ns()};
   std::unique_ptr<VirtualSensor> sensor;
@@ -135,7 +138,7 @@ int serve(const ServeFlags& flags) {
   raise_send_clock_priority();
   spdlog::info("serve: send clock runs {}",
                realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
-  return run_daemon(io, *sensor);
+  return run_daemon(io, signals, *sensor);
 }
 
 void setup_serve(CLI::App& app, std::function<int()>& run) {
