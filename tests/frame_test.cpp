@@ -63,9 +63,7 @@ class FrameTest : public ::testing::Test {
   static ForwardModelSetup setup(const LidarDataFormat& f, const nlohmann::json& chain) {
     ForwardModelSetup s;
     s.render = {profile_->beams, f, profile_->max_range_m, EffectChain::from_json(chain, "test chain"), 5, 1.0f};
-    s.clock.columns_per_frame = f.columns_per_frame;
-    s.clock.fps = f.fps;
-    s.clock.origin_ns = 1'000'000'000;
+    s.origin_ns = 1'000'000'000;
     s.init_id = kInitId;
     s.prod_sn = kProdSn;
     return s;

@@ -36,40 +36,73 @@ RayPacket16 make_packet(const BeamRay* column, int first_row, int rows) {
   return packet;
 }
 
-}  // namespace
+// The factors of 7.1 that depend on the beam alone, or on the column alone, computed once per row
+// and per column: a 2048 x 128 geometry is 262k entries, and the trigonometry of the pixel loop
+// then reduces to the two calls that need both angles. Same operations, same bits.
+struct RowAngles {
+  double theta_a;  // radians, with 7.1's minus
+  double cos_phi, sin_phi;
+};
+struct ColumnAngles {
+  double theta_e;
+  double cos_e, sin_e;
+};
+struct LutConstants {
+  double b03, b23, n;
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation_mm;
+};
 
-SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id) {
+RowAngles row_angles(const BeamIntrinsics& beams, int row) {
   constexpr double pi = std::numbers::pi;
   const size_t r = static_cast<size_t>(row);
+  const double phi = beams.altitude_deg[r] * pi / 180.0;
+  return {-beams.azimuth_deg[r] * pi / 180.0, std::cos(phi), std::sin(phi)};
+}
+
+ColumnAngles column_angles(int columns_per_frame, int measurement_id) {
+  constexpr double pi = std::numbers::pi;
   // 7.1: encoder angle falls as the measurement id grows; note the minus on the beam azimuth.
   const double theta_e = 2.0 * pi - measurement_id * 2.0 * pi / columns_per_frame;
-  const double theta_a = -beams.azimuth_deg[r] * pi / 180.0;
-  const double phi = beams.altitude_deg[r] * pi / 180.0;
+  return {theta_e, std::cos(theta_e), std::sin(theta_e)};
+}
+
+LutConstants lut_constants(const BeamIntrinsics& beams) {
   const double b03 = beams.beam_to_lidar[3];
   const double b23 = beams.beam_to_lidar[11];
   const double n = b23 == 0.0 ? b03 : std::sqrt(b03 * b03 + b23 * b23);
-  const Eigen::Vector3d d(std::cos(theta_e + theta_a) * std::cos(phi), std::sin(theta_e + theta_a) * std::cos(phi),
-                          std::sin(phi));
-  const Eigen::Vector3d o(b03 * std::cos(theta_e) - n * d.x(), b03 * std::sin(theta_e) - n * d.y(), b23 - n * d.z());
+  return {b03, b23, n, rotation_of(beams.lidar_to_sensor), translation_of(beams.lidar_to_sensor)};
+}
+
+SdkLutEntry lut_entry(const LutConstants& k, const RowAngles& row, const ColumnAngles& column) {
+  const double angle = column.theta_e + row.theta_a;
+  const Eigen::Vector3d d(std::cos(angle) * row.cos_phi, std::sin(angle) * row.cos_phi, row.sin_phi);
+  const Eigen::Vector3d o(k.b03 * column.cos_e - k.n * d.x(), k.b03 * column.sin_e - k.n * d.y(), k.b23 - k.n * d.z());
   // Apply lidar_to_sensor (translation in mm), then scale mm -> m.
-  const Eigen::Matrix3d rotation = rotation_of(beams.lidar_to_sensor);
-  return {rotation * d, kRangeUnit * (rotation * o + translation_of(beams.lidar_to_sensor))};
+  return {k.rotation * d, kRangeUnit * (k.rotation * o + k.translation_mm)};
+}
+
+}  // namespace
+
+SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id) {
+  return lut_entry(lut_constants(beams), row_angles(beams, row), column_angles(columns_per_frame, measurement_id));
 }
 
 BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
     : columns_(columns_per_frame), rows_(beams.pixels_per_column()), beams_(beams) {
   assert(beams.azimuth_deg.size() == beams.altitude_deg.size());
-  const double b03 = beams.beam_to_lidar[3];
-  const double b23 = beams.beam_to_lidar[11];
-  const double n_mm = b23 == 0.0 ? b03 : std::sqrt(b03 * b03 + b23 * b23);
+  const LutConstants constants = lut_constants(beams);
+  std::vector<RowAngles> rows;
+  for (int row = 0; row < rows_; ++row) rows.push_back(row_angles(beams, row));
   rays_.resize(static_cast<size_t>(columns_) * static_cast<size_t>(rows_));
   for (int m = 0; m < columns_; ++m) {
+    const ColumnAngles column = column_angles(columns_, m);
     for (int row = 0; row < rows_; ++row) {
-      const SdkLutEntry entry = sdk_lut_entry(beams, columns_, row, m);
+      const SdkLutEntry entry = lut_entry(constants, rows[static_cast<size_t>(row)], column);
       BeamRay& ray = rays_[static_cast<size_t>(m * rows_ + row)];
       ray.origin_m = entry.origin_m.cast<float>();
       ray.direction = entry.direction.cast<float>();
-      ray.range_offset_m = static_cast<float>(kRangeUnit * n_mm);
+      ray.range_offset_m = static_cast<float>(kRangeUnit * constants.n);
     }
   }
   packets_per_column_ = (rows_ + RayPacket16::kLanes - 1) / RayPacket16::kLanes;

@@ -11,14 +11,14 @@ namespace lidartwin {
 struct ForwardModel::Impl {
   Impl(const Scene& scene, const PoseSource& pose_source, ForwardModelSetup model_setup, WorkerPool& pool)
       : poses(pose_source),
-        clock(model_setup.clock),
+        clock{model_setup.render.format.columns_per_frame, model_setup.render.format.fps, model_setup.origin_ns,
+              model_setup.pose_origin_s},
         init_id(model_setup.init_id),
         prod_sn(model_setup.prod_sn),
         packets(model_setup.render.format),  // validates the format first
         renderer(scene, std::move(model_setup.render), pool),
         firsts(packets_to_send(packets.format())) {
     const LidarDataFormat& f = packets.format();
-    assert(clock.columns_per_frame == f.columns_per_frame && clock.fps == f.fps);
     valid_status = f.udp_profile_lidar == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;  // 4.2, 4.4
     index_of_first.assign(static_cast<size_t>(f.columns_per_frame / f.columns_per_packet), -1);
     for (size_t i = 0; i < firsts.size(); ++i) {

@@ -1,6 +1,7 @@
 #include "pcap/frame_encoder.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cassert>
 #include <cstring>
@@ -39,7 +40,7 @@ uint32_t add_words(std::span<const uint8_t> bytes, uint32_t sum) {
 }
 
 // Locally administered MACs derived from the IPs, so a capture shows one stable address per host.
-void write_ethernet(std::span<uint8_t> frame, const UdpDatagram& datagram) {
+void write_ethernet(std::span<uint8_t> frame, const UdpDatagramView& datagram) {
   const uint8_t dst[6] = {0x02, 0x00, datagram.dst_ip[0], datagram.dst_ip[1], datagram.dst_ip[2], datagram.dst_ip[3]};
   const uint8_t src[6] = {0x02, 0x00, datagram.src_ip[0], datagram.src_ip[1], datagram.src_ip[2], datagram.src_ip[3]};
   std::copy(dst, dst + 6, frame.begin());
@@ -47,7 +48,7 @@ void write_ethernet(std::span<uint8_t> frame, const UdpDatagram& datagram) {
   store_be16(frame, 12, 0x0800);
 }
 
-void write_ipv4(std::span<uint8_t> ip, const UdpDatagram& datagram, uint16_t id, size_t offset, size_t length,
+void write_ipv4(std::span<uint8_t> ip, const UdpDatagramView& datagram, uint16_t id, size_t offset, size_t length,
                 bool more_fragments) {
   ip[0] = 0x45;  // version 4, 5-word header
   ip[1] = 0;
@@ -62,20 +63,20 @@ void write_ipv4(std::span<uint8_t> ip, const UdpDatagram& datagram, uint16_t id,
   store_be16(ip, 10, internet_checksum(ip.first(kIpv4Header)));
 }
 
-// UDP header plus payload: the IP payload that fragments share. The checksum covers the RFC 768
-// pseudo-header; 0 would mean "no checksum", so a computed 0 is sent as 0xFFFF.
-void write_udp(std::vector<uint8_t>& udp, const UdpDatagram& datagram) {
+// The 8-byte UDP header of the datagram. The checksum covers the RFC 768 pseudo-header, this
+// header and the payload; 0 would mean "no checksum", so a computed 0 is sent as 0xFFFF.
+std::array<uint8_t, kUdpHeader> udp_header(const UdpDatagramView& datagram) {
+  std::array<uint8_t, kUdpHeader> header{};
   const size_t length = kUdpHeader + datagram.payload.size();
-  udp.resize(length);
-  store_be16(udp, 0, datagram.src_port);
-  store_be16(udp, 2, datagram.dst_port);
-  store_be16(udp, 4, static_cast<uint16_t>(length));
-  store_be16(udp, 6, 0);
-  std::copy(datagram.payload.begin(), datagram.payload.end(), udp.begin() + kUdpHeader);
-  uint32_t pseudo = add_words(datagram.src_ip, 0);
-  pseudo = add_words(datagram.dst_ip, pseudo) + kProtocolUdp + static_cast<uint32_t>(length);
-  const uint16_t checksum = internet_checksum(udp, pseudo);
-  store_be16(udp, 6, checksum == 0 ? 0xFFFF : checksum);
+  store_be16(header, 0, datagram.src_port);
+  store_be16(header, 2, datagram.dst_port);
+  store_be16(header, 4, static_cast<uint16_t>(length));
+  uint32_t sum = add_words(datagram.src_ip, 0);
+  sum = add_words(datagram.dst_ip, sum) + kProtocolUdp + static_cast<uint32_t>(length);
+  sum = add_words(header, sum);  // an even number of bytes: the payload's words stay aligned
+  const uint16_t checksum = internet_checksum(datagram.payload, sum);
+  store_be16(header, 6, checksum == 0 ? 0xFFFF : checksum);
+  return header;
 }
 
 }  // namespace
@@ -86,22 +87,32 @@ uint16_t internet_checksum(std::span<const uint8_t> bytes, uint32_t initial_sum)
   return static_cast<uint16_t>(~sum & 0xFFFF);
 }
 
-void encode_frames(const UdpDatagram& datagram, uint16_t ip_id, FrameScratch& scratch,
+void encode_frames(const UdpDatagramView& datagram, uint16_t ip_id, FrameScratch& scratch,
                    const std::function<void(std::span<const uint8_t>)>& emit, size_t mtu) {
   assert(datagram.payload.size() <= kMaxUdpPayload);
-  std::vector<uint8_t>& udp = scratch.udp;
-  write_udp(udp, datagram);
-  // Every fragment but the last carries a multiple of 8 bytes (RFC 791): 1480 at a 1500 MTU.
+  const std::array<uint8_t, kUdpHeader> header = udp_header(datagram);
+  const size_t udp_size = kUdpHeader + datagram.payload.size();
+  // The IP payload is the UDP header then the datagram's payload, copied straight from the caller's
+  // buffer into each fragment. Every fragment but the last carries a multiple of 8 bytes (RFC 791):
+  // 1480 at a 1500 MTU.
   const size_t per_fragment = (mtu - kIpv4Header) / 8 * 8;
-  for (size_t offset = 0; offset < udp.size(); offset += per_fragment) {
-    const size_t length = std::min(per_fragment, udp.size() - offset);
-    const bool more = offset + length < udp.size();
+  for (size_t offset = 0; offset < udp_size; offset += per_fragment) {
+    const size_t length = std::min(per_fragment, udp_size - offset);
+    const bool more = offset + length < udp_size;
     scratch.frame.resize(kEthernetHeader + kIpv4Header + length);
     std::span<uint8_t> frame(scratch.frame);
     write_ethernet(frame, datagram);
     write_ipv4(frame.subspan(kEthernetHeader), datagram, ip_id, offset, length, more);
-    std::copy_n(udp.begin() + static_cast<std::ptrdiff_t>(offset), length,
-                frame.begin() + kEthernetHeader + kIpv4Header);
+    uint8_t* out = frame.data() + kEthernetHeader + kIpv4Header;
+    size_t from = offset;  // offset into the UDP header + payload
+    if (from < kUdpHeader) {
+      const size_t n = std::min(kUdpHeader - from, length);
+      std::memcpy(out, header.data() + from, n);
+      out += n;
+      from += n;
+    }
+    const size_t rest = offset + length - from;
+    if (rest > 0) std::memcpy(out, datagram.payload.data() + (from - kUdpHeader), rest);
     emit(frame);
   }
 }

@@ -19,13 +19,12 @@ uint16_t internet_checksum(std::span<const uint8_t> bytes, uint32_t initial_sum 
 
 // Buffers reused between calls, so a recorder writes without allocating per packet.
 struct FrameScratch {
-  std::vector<uint8_t> udp;
   std::vector<uint8_t> frame;
 };
 
 // Calls emit once per frame, in offset order as Linux sends them. Requires
 // payload <= kMaxUdpPayload.
-void encode_frames(const UdpDatagram& datagram, uint16_t ip_id, FrameScratch& scratch,
+void encode_frames(const UdpDatagramView& datagram, uint16_t ip_id, FrameScratch& scratch,
                    const std::function<void(std::span<const uint8_t>)>& emit, size_t mtu = kEthernetMtu);
 
 }  // namespace lidartwin::pcap_detail

@@ -49,17 +49,17 @@ class CaptureWriter {
   }
 
   void write(std::span<const uint8_t> payload, uint64_t time_ns, uint16_t port) {
-    datagram_.timestamp_ns = time_ns;
-    datagram_.src_port = datagram_.dst_port = port;
-    datagram_.payload.assign(payload.begin(), payload.end());
-    pcap_.write(datagram_);
+    UdpDatagramView datagram;
+    datagram.timestamp_ns = time_ns;
+    datagram.src_port = datagram.dst_port = port;
+    datagram.payload = payload;
+    pcap_.write(datagram);  // straight from the frame buffer
   }
 
   const ForwardModel& model_;
   PcapWriter pcap_;
   bool imu_;
   uint64_t imu_sample_ = 0;
-  UdpDatagram datagram_;  // reused: no allocation per packet once grown
 };
 
 void write_metadata(const Metadata& metadata, const std::filesystem::path& path) {
@@ -72,10 +72,8 @@ ForwardModelSetup model_setup(const Recording& recording) {
   const Metadata& metadata = recording.metadata;
   ForwardModelSetup setup;
   setup.render = {metadata.beams, metadata.format, recording.max_range_m, recording.chain, recording.seed, 1.0f};
-  setup.clock.columns_per_frame = metadata.format.columns_per_frame;
-  setup.clock.fps = metadata.format.fps;
-  setup.clock.pose_origin_s = recording.poses.start_s();
-  setup.clock.origin_ns = static_cast<uint64_t>(std::llround(recording.poses.start_s() * 1e9));
+  setup.pose_origin_s = recording.poses.start_s();
+  setup.origin_ns = static_cast<uint64_t>(std::llround(recording.poses.start_s() * 1e9));
   setup.init_id = metadata.sensor_info.initialization_id;
   setup.prod_sn = std::stoull(metadata.sensor_info.prod_sn);
   return setup;

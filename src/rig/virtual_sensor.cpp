@@ -33,10 +33,8 @@ std::unique_ptr<ForwardModel> VirtualSensor::make_model(const StreamConfig& conf
   const LidarDataFormat& format = config.metadata.format;
   ForwardModelSetup setup;
   setup.render = {config.metadata.beams, format, max_range_m_, chain_, seed_, config.signal_multiplier};
-  setup.clock.columns_per_frame = format.columns_per_frame;
-  setup.clock.fps = format.fps;
-  setup.clock.origin_ns = origin_ns;
-  setup.clock.pose_origin_s = rig_.poses.start_s() + static_cast<double>(start_steady_ns - rig_.epoch_steady_ns) * 1e-9;
+  setup.origin_ns = origin_ns;
+  setup.pose_origin_s = rig_.poses.start_s() + static_cast<double>(start_steady_ns - rig_.epoch_steady_ns) * 1e-9;
   setup.init_id = config.init_id;
   setup.prod_sn = config.prod_sn;
   return std::make_unique<ForwardModel>(rig_.scene, rig_.poses, std::move(setup), rig_.pool);

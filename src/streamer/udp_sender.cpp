@@ -50,13 +50,7 @@ bool UdpSender::send(Ipv4 destination, uint16_t port, std::span<const uint8_t> d
 }
 
 void UdpSender::record(Ipv4 destination, uint16_t port, std::span<const uint8_t> datagram) {
-  record_buffer_.timestamp_ns = wall_clock_ns();
-  record_buffer_.src_ip = source_;
-  record_buffer_.dst_ip = destination;
-  record_buffer_.src_port = source_port_;
-  record_buffer_.dst_port = port;
-  record_buffer_.payload.assign(datagram.begin(), datagram.end());
-  recorder_->write(record_buffer_);
+  recorder_->write(UdpDatagramView{wall_clock_ns(), source_, destination, source_port_, port, datagram});
 }
 
 void UdpSender::close() {

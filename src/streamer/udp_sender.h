@@ -36,7 +36,6 @@ class UdpSender {
   Ipv4 source_{};
   uint16_t source_port_ = 0;
   std::unique_ptr<PcapWriter> recorder_;  // null unless --record
-  UdpDatagram record_buffer_;             // reused so recording allocates nothing per packet
   uint64_t errors_ = 0;
 };
 

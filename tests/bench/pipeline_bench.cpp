@@ -247,7 +247,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
   WorkerPool pool(threads);
   ForwardModelSetup setup;
   setup.render = {s.metadata.beams, s.format(), s.profile.max_range_m, chain_of(s), 1, 1.0f};
-  setup.clock = {s.format().columns_per_frame, s.format().fps, 0, scenario.poses->start_s()};
+  setup.pose_origin_s = scenario.poses->start_s();
   const ForwardModel model(s.scene, *scenario.poses, setup, pool);
   const FrameRenderer& renderer = model.renderer();
   const auto rays =

@@ -22,7 +22,10 @@ namespace lidartwin {
 
 struct ForwardModelSetup {
   RenderSetup render;
-  SensorClock clock;     // columns_per_frame and fps must match render.format
+  // Where the sensor's clock starts (SensorClock; its width and rate come from render.format): the
+  // timestamp of frame 0's column 0, and the pose source's time then.
+  uint64_t origin_ns = 0;
+  double pose_origin_s = 0.0;
   uint32_t init_id = 0;  // header fields of every packet (4.3)
   uint64_t prod_sn = 0;
 };

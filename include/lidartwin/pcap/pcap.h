@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace lidartwin {
@@ -19,6 +20,20 @@ struct UdpDatagram {
   std::vector<uint8_t> payload;  // reassembled from IPv4 fragments
   friend bool operator==(const UdpDatagram&, const UdpDatagram&) = default;
 };
+
+// The same datagram with its payload borrowed: what writers take, so a packet already encoded in a
+// frame buffer goes to the capture without a copy.
+struct UdpDatagramView {
+  uint64_t timestamp_ns = 0;
+  std::array<uint8_t, 4> src_ip{127, 0, 0, 1};
+  std::array<uint8_t, 4> dst_ip{127, 0, 0, 1};
+  uint16_t src_port = 0;
+  uint16_t dst_port = 0;
+  std::span<const uint8_t> payload;
+};
+inline UdpDatagramView view_of(const UdpDatagram& d) {
+  return {d.timestamp_ns, d.src_ip, d.dst_ip, d.src_port, d.dst_port, d.payload};
+}
 
 // What a read saw besides the datagrams it returned.
 struct PcapStats {
@@ -65,7 +80,8 @@ class PcapWriter {
   PcapWriter(const PcapWriter&) = delete;
   PcapWriter& operator=(const PcapWriter&) = delete;
   // Throws InputError if the payload does not fit one UDP datagram (65507 bytes).
-  void write(const UdpDatagram& datagram);
+  void write(const UdpDatagramView& datagram);
+  void write(const UdpDatagram& datagram) { write(view_of(datagram)); }
   void flush();
 
  private:
