@@ -96,7 +96,7 @@ class RecordGeometry : public ::testing::Test {
 // The pose of the first row of poses.tum, for static recordings.
 PoseAt static_pose(const std::filesystem::path& out) {
   const auto poses = test::read_poses(out / "poses.tum");
-  EXPECT_EQ(poses.size(), 2u);
+  EXPECT_EQ(poses.size(), 3u);  // each frame's start, and where the last one ends
   return [pose = poses.at(0)](double) { return pose; };
 }
 
@@ -163,10 +163,12 @@ TEST_F(RecordGeometry, MovingSensorUsesEachColumnsPose) {
                                  start + t * velocity};
   };
   expect_on_surfaces(check(out, pose_at, 0.3, 100.0), 2 * 1024 * 64);
-  const auto poses = test::read_poses(out / "poses.tum");  // ground truth at each frame's column 0
-  ASSERT_EQ(poses.size(), 2u);
+  // Ground truth at each frame's column 0, and where the last frame ends.
+  const auto poses = test::read_poses(out / "poses.tum");
+  ASSERT_EQ(poses.size(), 3u);
   EXPECT_NEAR((poses[1].translation - pose_at(0.1).translation).norm(), 0.0, 1e-6);
   EXPECT_NEAR(poses[1].rotation.angularDistance(pose_at(0.1).rotation), 0.0, 1e-6);
+  EXPECT_NEAR((poses[2].translation - pose_at(0.2).translation).norm(), 0.0, 1e-6);
 }
 
 }  // namespace

@@ -102,6 +102,10 @@ void record(const Recording& recording, const std::function<void(int frames_done
     progress(k + 1);
   }
   if (writing.valid()) writing.get();
+  // And the pose where the last frame ends, so the file spans every column of the capture (compare
+  // reads it as the trajectory of a record directory).
+  const double end_s = model.clock().column_pose_time_s(static_cast<uint64_t>(recording.frames), 0);
+  poses.push_back({end_s, recording.poses.at(end_s)});
   capture.write_imu_until(model.clock().origin_ns +
                           model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
   write_tum(recording.out_dir / "poses.tum", poses);

@@ -48,13 +48,17 @@ class StaticPose final : public PoseSource {
 class TrajectoryPoses final : public PoseSource {
  public:
   explicit TrajectoryPoses(Trajectory trajectory) : trajectory_(std::move(trajectory)) {}
+  // Answering only for span: the analysis does not stand behind poses a measured trajectory does
+  // not cover (held end poses would compare the sensor at the wrong place).
+  TrajectoryPoses(Trajectory trajectory, PoseSpan span) : trajectory_(std::move(trajectory)), span_(span) {}
   Pose at(double time_s) const override { return trajectory_.at(time_s); }
-  PoseSpan span() const override { return {}; }
+  PoseSpan span() const override { return span_; }
   double start_s() const override { return trajectory_.start_s(); }
   const Trajectory& trajectory() const { return trajectory_; }
 
  private:
   Trajectory trajectory_;
+  PoseSpan span_;
 };
 
 }  // namespace lidartwin

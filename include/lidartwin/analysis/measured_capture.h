@@ -1,0 +1,27 @@
+#pragma once
+// A capture as the analysis reads it: the sensor's metadata and the frames its lidar packets make,
+// batched as the Ouster SDK batches them.
+#include <cstddef>
+#include <filesystem>
+#include <vector>
+
+#include "lidartwin/metadata/metadata.h"
+#include "lidartwin/packet/scan_batcher.h"
+
+namespace lidartwin {
+
+struct MeasuredCapture {
+  Metadata metadata;
+  std::vector<BatchedFrame> frames;  // in capture order; only frames with at least one packet
+  size_t datagrams = 0;              // UDP datagrams in the capture
+  ScanBatcher::Counts counts;        // what the batcher did with them
+};
+
+// Reads up to max_frames frames (0: all). Packets of another sensor or session (init_id, prod_sn
+// other than the metadata's) are left out as the SDK leaves them out. Throws InputError naming the
+// capture and the metadata when no datagram is a lidar packet of the metadata's format (a capture
+// of another mode or profile, or of another sensor), or the metadata's lidar output is off.
+MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::filesystem::path& metadata_path,
+                             size_t max_frames = 0);
+
+}  // namespace lidartwin

@@ -1,0 +1,69 @@
+#pragma once
+// The measured capture beside the model, pixel by pixel (lidar-physics.md 3.2): every pixel of every
+// observed column of every frame, with what was measured, what a perfect sensor would have seen
+// there (the same beams cast at the column's own time and pose), the features effects depend on,
+// and the chain's predicted distribution. One table feeds the scoring, the bins and the fits, and
+// is written out for users' own analysis (DIR/pixels.npz).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lidartwin/analysis/measured_capture.h"
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/scene/scene.h"
+
+namespace lidartwin {
+
+// Columns of the table, one entry per pixel (structure of arrays).
+struct PixelTable {
+  // Where the pixel is.
+  std::vector<uint32_t> frame;   // index of the frame in the capture (0, 1, …)
+  std::vector<uint16_t> beam;    // row
+  std::vector<uint16_t> column;  // measurement id
+  std::vector<double> time_s;    // column timestamp, seconds on the capture's clock
+  // Measured (0 where the channel is absent or there was no return).
+  std::vector<float> range_m;
+  std::vector<float> signal;
+  std::vector<float> reflectivity;
+  std::vector<float> near_ir;
+  std::vector<float> range2_m;
+  // The ideal return and its features.
+  std::vector<float> ideal_range_m;  // 0: the beam hits nothing in the scene
+  std::vector<float> incidence_deg;
+  std::vector<float> material_reflectivity;  // diffuse, 0..1
+  std::vector<uint16_t> material;
+  std::vector<uint8_t> retro;
+  std::vector<uint8_t> edge;       // at a depth discontinuity in the column
+  std::vector<float> azimuth_deg;  // encoder angle of the column (protocol doc 7.1)
+  // The chain's prediction.
+  std::vector<float> predicted_bias_m;
+  std::vector<float> predicted_sigma_m;  // of the range before quantization
+  std::vector<float> p_detect;
+  std::vector<float> outlier_mix;
+  std::vector<float> expected_signal;
+  std::vector<float> expected_near_ir;
+  std::vector<float> window_min_m;
+  std::vector<float> window_max_m;
+  std::vector<float> step_m;  // width of the measured range bins
+
+  size_t size() const { return beam.size(); }
+  void resize(size_t n);
+};
+
+struct PixelTableSetup {
+  const MeasuredCapture& capture;
+  const Scene& scene;
+  const PoseSource& poses;     // world_from_sensor on the capture's clock, shifted by time_offset_s
+  double time_offset_s = 0.0;  // pose time = column timestamp + offset
+  const EffectChain& chain;    // the profile's: only its effects are used, never its beams or modes
+  double max_range_m = 100.0;  // the cast looks 1 m beyond it, as the forward model does
+};
+
+// Casts the capture's own beams (metadata) at each column's timestamp and pose. Columns whose
+// status is not valid or whose packet never arrived are left out. Throws InputError when a column
+// time lies outside the pose source's span, or when the chain predicts no spread for returns.
+PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool);
+
+}  // namespace lidartwin

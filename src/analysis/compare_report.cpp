@@ -1,0 +1,115 @@
+// report.json and pixels.npz: every number the comparison made, for scripts and for the plots.
+#include "lidartwin/analysis/compare_report.h"
+
+#include "lidartwin/analysis/npz_writer.h"
+
+namespace lidartwin {
+namespace {
+
+nlohmann::json region_json(const Region& region) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& [name, range] : region) out[name] = {range[0], range[1]};
+  return out;
+}
+
+nlohmann::json bin_json(const BinMisfit& b) {
+  return {{"features", region_json(b.region)},
+          {"pixels", b.pixels},
+          {"returns", b.returns},
+          {"inliers", b.inliers},
+          {"detection", {{"measured", b.detection_measured}, {"predicted", b.detection_predicted}}},
+          {"bias_m", {{"measured", b.bias_measured_m}, {"predicted", b.bias_predicted_m}}},
+          {"spread_m", {{"measured", b.spread_measured_m}, {"predicted", b.spread_predicted_m}}},
+          {"spread_ratio", b.spread_ratio},
+          {"outliers", {{"measured", b.outliers_measured}, {"predicted", b.outliers_predicted}}},
+          {"misfit_nats",
+           {{"bias", b.misfit_bias},
+            {"spread", b.misfit_spread},
+            {"detection", b.misfit_detection},
+            {"outliers", b.misfit_outliers}}},
+          {"nll", b.nll},
+          {"nll_expected", b.nll_expected},
+          {"p_value",
+           {{"bias", b.p_bias}, {"spread", b.p_spread}, {"detection", b.p_detection}, {"outliers", b.p_outliers}}}};
+}
+
+}  // namespace
+
+nlohmann::json compare_report(const Misfit& misfit, const nlohmann::json& inputs, double alpha) {
+  const MisfitSummary& s = misfit.summary;
+  nlohmann::json report;
+  report["schema"] = kCompareReportSchema;
+  report["inputs"] = inputs;
+  report["summary"] = {{"frames", s.frames},
+                       {"pixels", s.pixels},
+                       {"returns", s.returns},
+                       {"nll_per_pixel", s.nll_per_pixel},
+                       {"nll_expected", s.nll_expected},
+                       {"nll_se", s.nll_se},
+                       {"detection", {{"measured", s.detection_measured}, {"predicted", s.detection_predicted}}},
+                       {"unexpected_returns", s.unexpected_returns},
+                       {"impossible_misses", s.impossible_misses},
+                       {"z", {{"mean", s.z_mean}, {"std", s.z_std}}},
+                       {"pit_histogram", s.pit_histogram},
+                       {"pit_uniformity_p", s.pit_uniformity_p},
+                       {"alpha", alpha},
+                       {"tests", s.tests},
+                       {"failing_regions", misfit.failing.size()}};
+  nlohmann::json failing = nlohmann::json::array();
+  for (const FailingRegion& f : misfit.failing) {
+    failing.push_back({{"quantity", f.quantity},
+                       {"features", region_json(f.region)},
+                       {"measured", f.measured},
+                       {"predicted", f.predicted},
+                       {"unit", f.quantity == "bias" || f.quantity == "spread" ? "m" : "fraction"},
+                       {"pixels", f.pixels},
+                       {"p_value", f.p_value},
+                       {"misfit_nats", f.misfit_nats},
+                       {"misfit_per_pixel", f.misfit_per_pixel},
+                       {"sentence", f.sentence}});
+  }
+  report["failing"] = std::move(failing);
+  nlohmann::json bins = nlohmann::json::array();
+  for (const BinMisfit& b : misfit.bins) bins.push_back(bin_json(b));
+  report["bins"] = std::move(bins);
+  return report;
+}
+
+void write_pixels_npz(const std::filesystem::path& path, const PixelTable& t, const PixelScores& s) {
+  NpzWriter npz(path);
+  npz.add("frame", std::span<const uint32_t>(t.frame));
+  npz.add("beam", std::span<const uint16_t>(t.beam));
+  npz.add("column", std::span<const uint16_t>(t.column));
+  npz.add("time_s", std::span<const double>(t.time_s));
+  npz.add("range_m", std::span<const float>(t.range_m));
+  npz.add("signal", std::span<const float>(t.signal));
+  npz.add("reflectivity", std::span<const float>(t.reflectivity));
+  npz.add("near_ir", std::span<const float>(t.near_ir));
+  npz.add("range2_m", std::span<const float>(t.range2_m));
+  npz.add("ideal_range_m", std::span<const float>(t.ideal_range_m));
+  npz.add("incidence_deg", std::span<const float>(t.incidence_deg));
+  npz.add("material_reflectivity", std::span<const float>(t.material_reflectivity));
+  npz.add("material", std::span<const uint16_t>(t.material));
+  npz.add("retro", std::span<const uint8_t>(t.retro));
+  npz.add("edge", std::span<const uint8_t>(t.edge));
+  npz.add("azimuth_deg", std::span<const float>(t.azimuth_deg));
+  npz.add("predicted_bias_m", std::span<const float>(t.predicted_bias_m));
+  npz.add("predicted_sigma_m", std::span<const float>(t.predicted_sigma_m));
+  npz.add("p_detect", std::span<const float>(t.p_detect));
+  npz.add("outlier_mix", std::span<const float>(t.outlier_mix));
+  npz.add("expected_signal", std::span<const float>(t.expected_signal));
+  npz.add("expected_near_ir", std::span<const float>(t.expected_near_ir));
+  npz.add("window_min_m", std::span<const float>(t.window_min_m));
+  npz.add("window_max_m", std::span<const float>(t.window_max_m));
+  npz.add("step_m", std::span<const float>(t.step_m));
+  npz.add("nll", std::span<const float>(s.nll));
+  npz.add("nll_expected", std::span<const float>(s.nll_expected));
+  npz.add("z", std::span<const float>(s.z));
+  npz.add("predicted_mean_m", std::span<const float>(s.mean_m));
+  npz.add("predicted_sd_m", std::span<const float>(s.sd_m));
+  npz.add("pit", std::span<const float>(s.pit));
+  npz.add("impossible", std::span<const uint8_t>(s.impossible));
+  npz.close();
+}
+
+}  // namespace lidartwin

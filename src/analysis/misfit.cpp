@@ -1,0 +1,480 @@
+// Scores, bins and tests (lidar-physics.md 3.2-3.3): where the measured pixels leave the model.
+#include "lidartwin/analysis/misfit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <set>
+
+#include <fmt/format.h>
+
+#include "lidartwin/analysis/pixel_likelihood.h"
+#include "lidartwin/random/counter_rng.h"
+
+namespace lidartwin {
+namespace {
+
+constexpr double kOutlierZ = 5.0;     // a return this many sigma off counts as an outlier, not spread
+constexpr size_t kMinTested = 30;     // smaller bins are reported but not tested
+constexpr size_t kMaxMaterials = 32;  // beyond this, materials are not binned one by one
+constexpr int kPitBins = 20;
+
+// The table stores floats; sums and tests run in double.
+double f64(float v) { return static_cast<double>(v); }
+
+RangeModel model_of(const PixelTable& t, size_t i) {
+  RangeModel m;
+  m.mean_m = (f64(t.ideal_range_m[i])) + f64(t.predicted_bias_m[i]);
+  m.sigma_m = f64(t.predicted_sigma_m[i]);
+  m.p_detect = f64(t.p_detect[i]);
+  m.outlier_mix = f64(t.outlier_mix[i]);
+  m.window_min_m = f64(t.window_min_m[i]);
+  m.window_max_m = f64(t.window_max_m[i]);
+  m.step_m = f64(t.step_m[i]);
+  return m;
+}
+
+// ---- feature bins --------------------------------------------------------------------------------
+
+struct Feature {
+  std::string name;
+  std::vector<double> edges;  // bin k is [edges[k], edges[k + 1])
+  bool integer = false;       // integer-valued: a bin's region is [lo, hi - 1]
+  std::function<double(size_t)> value;
+  int bin(double v) const {
+    const auto it = std::upper_bound(edges.begin(), edges.end(), v);
+    const auto k = static_cast<int>(it - edges.begin()) - 1;
+    return k >= 0 && k + 1 < static_cast<int>(edges.size()) ? k : -1;
+  }
+  int bins() const { return static_cast<int>(edges.size()) - 1; }
+  std::array<double, 2> range_of(int k) const {
+    const auto u = static_cast<size_t>(k);
+    return {edges[u], integer ? edges[u + 1] - 1 : edges[u + 1]};
+  }
+};
+
+std::vector<double> integer_edges(int first, int last, int step) {
+  std::vector<double> edges;
+  for (int v = first; v <= last; v += step) edges.push_back(v);
+  if (edges.back() < last + 1) edges.push_back(last + 1);
+  return edges;
+}
+
+struct Features {
+  std::map<std::string, Feature> by_name;
+  const Feature& operator[](const std::string& name) const { return by_name.at(name); }
+};
+
+Features make_features(const PixelTable& t) {
+  Features f;
+  const auto add = [&](Feature feature) { f.by_name.emplace(feature.name, std::move(feature)); };
+  add({"range", {0, 1, 2, 3, 5, 8, 13, 20, 35, 60, 100, 200, 1e4}, false, [&t](size_t i) {
+         return f64(t.ideal_range_m[i]);
+       }});
+  // Values at a closed upper end (90°, 360°) are kept in the last bin.
+  add({"incidence", {0, 30, 45, 60, 75, 90}, false, [&t](size_t i) {
+         return std::min(f64(t.incidence_deg[i]), 89.999);
+       }});
+  add({"reflectivity", {0, 5, 10, 20, 40, 60, 80, 1e4}, false, [&t](size_t i) {
+         return 100.0 * f64(t.material_reflectivity[i]);
+       }});
+  add({"signal", {0, 10, 30, 100, 300, 1000, 3000, 10000, 1e12}, false, [&t](size_t i) {
+         return f64(t.expected_signal[i]);
+       }});
+  add({"near_ir", {0, 10, 30, 100, 300, 1000, 3000, 10000, 1e12}, false, [&t](size_t i) {
+         return f64(t.expected_near_ir[i]);
+       }});
+  add({"azimuth", {0, 45, 90, 135, 180, 225, 270, 315, 360}, false, [&t](size_t i) {
+         return std::min(f64(t.azimuth_deg[i]), 359.999);
+       }});
+  add({"edge", {0, 1, 2}, true, [&t](size_t i) { return t.edge[i]; }});
+  add({"retro", {0, 1, 2}, true, [&t](size_t i) { return t.retro[i]; }});
+  int beams = 0;
+  for (const uint16_t b : t.beam) beams = std::max(beams, b + 1);
+  add({"beam", integer_edges(0, beams - 1, 1), true, [&t](size_t i) { return t.beam[i]; }});
+  add({"beam_group", integer_edges(0, beams - 1, 8), true, [&t](size_t i) { return t.beam[i]; }});
+  double t0 = 0.0, t1 = 0.0;
+  if (t.size() > 0) {
+    const auto [lo, hi] = std::minmax_element(t.time_s.begin(), t.time_s.end());
+    t0 = *lo;
+    t1 = *hi;
+  }
+  std::vector<double> time_edges;
+  for (int k = 0; k <= 5; ++k) time_edges.push_back((t1 - t0) * k / 5.0);
+  time_edges.back() = std::nextafter(time_edges.back(), 1e300);
+  add({"time", time_edges, false, [&t, t0](size_t i) { return t.time_s[i] - t0; }});
+  std::set<uint16_t> materials;
+  for (size_t i = 0; i < t.size() && materials.size() <= kMaxMaterials; ++i) {
+    if (t.ideal_range_m[i] > 0.0f) materials.insert(t.material[i]);
+  }
+  if (materials.size() <= kMaxMaterials && !materials.empty()) {
+    add({"material", integer_edges(0, *materials.rbegin(), 1), true, [&t](size_t i) { return t.material[i]; }});
+  }
+  return f;
+}
+
+// The binnings reported: each feature alone, and the pairs the physics says interact (3.2).
+std::vector<std::vector<std::string>> binnings(const Features& f) {
+  std::vector<std::vector<std::string>> out;
+  for (const char* name : {"range", "incidence", "reflectivity", "signal", "near_ir", "beam", "azimuth", "time", "edge",
+                           "retro", "material"}) {
+    if (f.by_name.count(name)) out.push_back({name});
+  }
+  out.push_back({"range", "incidence"});
+  out.push_back({"range", "reflectivity"});
+  out.push_back({"range", "beam_group"});
+  out.push_back({"azimuth", "range"});
+  out.push_back({"range", "edge"});
+  return out;
+}
+
+// ---- accumulation --------------------------------------------------------------------------------
+
+struct Acc {
+  size_t pixels = 0, returns = 0, inliers = 0, outliers = 0;
+  double pd = 0, pd_var = 0;
+  double z = 0, z2 = 0, e = 0, eb = 0, eb2 = 0, bias = 0, sigma2 = 0, sheppard = 0;
+  double outliers_expected = 0;
+  double nll = 0, nll_expected = 0;
+};
+
+void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
+  const double pd = f64(t.p_detect[i]);
+  ++a.pixels;
+  a.pd += pd;
+  a.pd_var += pd * (1.0 - pd);
+  a.nll += f64(s.nll[i]);
+  a.nll_expected += f64(s.nll_expected[i]);
+  if (t.range_m[i] <= 0.0f) return;
+  ++a.returns;
+  const double pi = f64(t.outlier_mix[i]);
+  a.outliers_expected += pi + (1.0 - pi) * 2.0 * normal_cdf(-kOutlierZ);
+  const double z = f64(s.z[i]);
+  if (s.impossible[i] || std::abs(z) > kOutlierZ) {
+    ++a.outliers;
+    return;
+  }
+  ++a.inliers;
+  const double e = (f64(t.range_m[i])) - f64(t.ideal_range_m[i]);
+  const double bias = f64(s.mean_m[i]) - f64(t.ideal_range_m[i]);  // bias + the window's shift
+  const double sigma = f64(s.sd_m[i]);
+  a.z += z;
+  a.z2 += z * z;
+  a.e += e;
+  a.eb += e - bias;
+  a.eb2 += (e - bias) * (e - bias);
+  a.bias += bias;
+  a.sigma2 += sigma * sigma;
+  a.sheppard += (f64(t.step_m[i])) * f64(t.step_m[i]) / (12.0 * sigma * sigma);
+}
+
+// ---- tests ---------------------------------------------------------------------------------------
+
+double two_sided_normal(double t) { return std::erfc(std::abs(t) / std::sqrt(2.0)); }
+
+// Chi-square CDF by the Wilson-Hilferty cube-root normal approximation (good for dof >= 10 and
+// fine for ranking below that).
+double chi2_cdf(double x, double dof) {
+  if (x <= 0.0) return 0.0;
+  const double v = 2.0 / (9.0 * dof);
+  return normal_cdf((std::cbrt(x / dof) - (1.0 - v)) / std::sqrt(v));
+}
+
+// Two-sided p of observing k events where lambda are expected (Poisson; normal beyond 200).
+double poisson_two_sided(double k, double lambda) {
+  if (lambda <= 0.0) return k > 0.0 ? 0.0 : 1.0;
+  if (lambda > 200.0) return two_sided_normal((k - lambda) / std::sqrt(lambda));
+  const auto pmf = [lambda](double j) { return std::exp(j * std::log(lambda) - lambda - std::lgamma(j + 1.0)); };
+  double below = 0.0;  // P(X <= k)
+  for (double j = 0.0; j <= k; j += 1.0) below += pmf(j);
+  const double above = 1.0 - below + pmf(k);  // P(X >= k)
+  return std::min(1.0, 2.0 * std::min(below, above));
+}
+
+double bernoulli_kl(double p, double q) {
+  const auto term = [](double a, double b) { return a > 0.0 ? a * std::log(a / std::max(b, 1e-12)) : 0.0; };
+  return term(p, q) + term(1.0 - p, 1.0 - q);
+}
+
+struct RawTests {
+  double bias = -1, spread = -1, detection = -1, outliers = -1;  // -1: not tested
+};
+
+BinMisfit summarize(const Acc& a, RawTests& raw) {
+  BinMisfit b;
+  b.pixels = a.pixels;
+  b.returns = a.returns;
+  b.inliers = a.inliers;
+  b.nll = a.nll;
+  b.nll_expected = a.nll_expected;
+  if (a.pixels > 0) {
+    b.detection_measured = static_cast<double>(a.returns) / static_cast<double>(a.pixels);
+    b.detection_predicted = a.pd / static_cast<double>(a.pixels);
+    b.misfit_detection = static_cast<double>(a.pixels) * bernoulli_kl(b.detection_measured, b.detection_predicted);
+  }
+  if (a.pixels >= kMinTested) {
+    const double misses = static_cast<double>(a.pixels - a.returns);
+    const double expected_misses = static_cast<double>(a.pixels) - a.pd;
+    raw.detection = a.pd_var < 25.0 ? poisson_two_sided(misses, expected_misses)
+                                    : two_sided_normal((static_cast<double>(a.returns) - a.pd) / std::sqrt(a.pd_var));
+  }
+  if (a.returns > 0) {
+    b.outliers_measured = static_cast<double>(a.outliers) / static_cast<double>(a.returns);
+    b.outliers_predicted = a.outliers_expected / static_cast<double>(a.returns);
+    const double o = static_cast<double>(a.outliers), l = a.outliers_expected;
+    b.misfit_outliers = (o > 0.0 ? o * std::log(o / std::max(l, 1e-12)) : 0.0) - (o - l);
+    if (a.returns >= kMinTested) raw.outliers = poisson_two_sided(o, l);
+  }
+  if (a.inliers > 0) {
+    const auto n = static_cast<double>(a.inliers);
+    b.bias_measured_m = a.e / n;
+    b.bias_predicted_m = a.bias / n;
+    b.spread_measured_m = std::sqrt(std::max(a.eb2 / n - (a.eb / n) * (a.eb / n), 0.0));
+    b.spread_predicted_m = std::sqrt(a.sigma2 / n);
+    // z's variance under the model: 1, plus the quantization of the measured range (Sheppard).
+    const double v = 1.0 + a.sheppard / n;
+    const double z_mean = a.z / n;
+    const double ratio2 = std::max(a.z2 / n - z_mean * z_mean, 0.0) / v;
+    b.spread_ratio = std::sqrt(ratio2);
+    b.misfit_bias = n * z_mean * z_mean / (2.0 * v);
+    b.misfit_spread = ratio2 > 0.0 ? n * (-0.5 * std::log(ratio2) + 0.5 * ratio2 - 0.5) : 0.0;
+    if (a.inliers >= kMinTested) {
+      raw.bias = two_sided_normal(a.z / std::sqrt(n * v));
+      const double cdf = chi2_cdf(n * ratio2, n - 1.0);
+      raw.spread = std::min(1.0, 2.0 * std::min(cdf, 1.0 - cdf));
+    }
+  }
+  return b;
+}
+
+// ---- words ---------------------------------------------------------------------------------------
+
+std::string millimetres(double m) {
+  const double mm = m * 1000.0;
+  return std::abs(mm) < 10.0 ? fmt::format("{:.1f} mm", mm) : fmt::format("{:.0f} mm", mm);
+}
+std::string signed_millimetres(double m) { return (m >= 0 ? "+" : "") + millimetres(m); }
+std::string percent(double f) {
+  return f < 0.001 ? fmt::format("{:.3f} %", 100 * f)
+         : f < 0.1 ? fmt::format("{:.1f} %", 100 * f)
+                   : fmt::format("{:.0f} %", 100 * f);
+}
+
+std::string sentence(const FailingRegion& f, const BinMisfit& b) {
+  const std::string where = describe(f.region);
+  const std::string count = fmt::format("{} pixels", b.pixels);
+  if (f.quantity == "bias") {
+    const double diff = b.bias_measured_m - b.bias_predicted_m;
+    return fmt::format("{}: the measured range is {} {} than the model's (bias {} against {}; {})", where,
+                       millimetres(std::abs(diff)), diff > 0 ? "longer" : "shorter",
+                       signed_millimetres(b.bias_measured_m), signed_millimetres(b.bias_predicted_m), count);
+  }
+  if (f.quantity == "spread") {
+    return fmt::format("{}: the measured spread is {:.2g} times the model's ({} against {}; {})", where, b.spread_ratio,
+                       millimetres(b.spread_measured_m), millimetres(b.spread_predicted_m), count);
+  }
+  if (f.quantity == "detection") {
+    return fmt::format("{}: {} of pixels return, the model expects {} ({})", where, percent(b.detection_measured),
+                       percent(b.detection_predicted), count);
+  }
+  return fmt::format("{}: {} of returns lie beyond 5 sigma, the model expects {} ({} returns)", where,
+                     percent(b.outliers_measured), percent(b.outliers_predicted), b.returns);
+}
+
+std::string number(double v) {
+  if (v == std::floor(v) && std::abs(v) < 1e6) return fmt::format("{:.0f}", v);
+  return fmt::format("{:.3g}", v);
+}
+
+// A pair region that fails no more strongly than one of its features alone says nothing the
+// single feature does not ("range 13-20 m, beams 16-23" when all of 13-20 m fails alike): it is
+// dropped, so the report names the feature the misfit follows. A pair is kept when it fails at
+// least 1.5 times as strongly per pixel as each of its failing single-feature regions.
+void drop_explained_pairs(std::vector<FailingRegion>& failing) {
+  std::map<std::pair<std::string, std::string>, double> single;  // (quantity, "name lo hi") -> per pixel
+  const auto key = [](const std::string& quantity, const std::pair<std::string, std::array<double, 2>>& f) {
+    return std::make_pair(quantity, fmt::format("{} {} {}", f.first, f.second[0], f.second[1]));
+  };
+  for (const FailingRegion& f : failing) {
+    if (f.region.size() == 1) single[key(f.quantity, f.region[0])] = f.misfit_per_pixel;
+  }
+  std::erase_if(failing, [&](const FailingRegion& f) {
+    if (f.region.size() < 2) return false;
+    for (const auto& feature : f.region) {
+      const auto it = single.find(key(f.quantity, feature));
+      if (it != single.end() && f.misfit_per_pixel < 1.5 * it->second) return true;
+    }
+    return false;
+  });
+}
+
+}  // namespace
+
+std::string describe(const Region& region) {
+  std::vector<std::string> parts;
+  for (const auto& [name, range] : region) {
+    const auto [lo, hi] = range;
+    const auto span = [&](const char* what, const char* unit, double top) {
+      if (hi >= top) return fmt::format("{} above {}{}", what, number(lo), unit);
+      if (lo <= 0.0 && name != "beam" && name != "beam_group")
+        return fmt::format("{} below {}{}", what, number(hi), unit);
+      return fmt::format("{} {}–{}{}", what, number(lo), number(hi), unit);
+    };
+    if (name == "range") parts.push_back(span("range", " m", 1e3));
+    else if (name == "incidence") parts.push_back(span("incidence", "°", 90.0));
+    else if (name == "reflectivity") parts.push_back(span("reflectivity", " %", 1e3));
+    else if (name == "signal") parts.push_back(span("expected signal", " photons", 1e6));
+    else if (name == "near_ir") parts.push_back(span("expected near-IR", " photons", 1e6));
+    else if (name == "azimuth") parts.push_back(fmt::format("azimuth {}–{}°", number(lo), number(hi)));
+    else if (name == "time") parts.push_back(fmt::format("time {:.2f}–{:.2f} s", lo, hi));
+    else if (name == "edge") parts.push_back(lo > 0 ? "at depth edges" : "away from depth edges");
+    else if (name == "retro") parts.push_back(lo > 0 ? "on retroreflectors" : "off retroreflectors");
+    else if (name == "material") parts.push_back(fmt::format("material {}", number(lo)));
+    else if (lo == hi) parts.push_back(fmt::format("beam {}", number(lo)));
+    else parts.push_back(fmt::format("beams {}–{}", number(lo), number(hi)));
+  }
+  std::string out;
+  for (size_t i = 0; i < parts.size(); ++i) out += (i ? ", " : "") + parts[i];
+  return out;
+}
+
+PixelScores score_pixels(const PixelTable& t, uint64_t seed) {
+  PixelScores s;
+  const size_t n = t.size();
+  s.nll.resize(n);
+  s.z.resize(n);
+  s.pit.resize(n);
+  s.impossible.resize(n);
+  s.mean_m.resize(n);
+  s.sd_m.resize(n);
+  s.nll_expected.resize(n);
+  s.nll_variance.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const RangeModel model = model_of(t, i);
+    // The PIT draw is keyed by the pixel, so reports repeat exactly (DESIGN.md: counter-based noise).
+    RandomStream draw(seed, PixelKey{t.frame[i], t.column[i], t.beam[i]}, 0x5049545Fu);
+    const PixelScore score = score_pixel(model, f64(t.range_m[i]), draw.uniform(0));
+    s.nll[i] = static_cast<float>(score.nll);
+    s.z[i] = static_cast<float>(score.z);
+    s.pit[i] = t.range_m[i] > 0.0f ? static_cast<float>(score.pit) : -1.0f;
+    s.impossible[i] = score.impossible ? 1 : 0;
+    s.mean_m[i] = static_cast<float>(score.mean_m);
+    s.sd_m[i] = static_cast<float>(score.sd_m);
+    const NllMoments moments = expected_nll(model);
+    s.nll_expected[i] = static_cast<float>(moments.mean);
+    s.nll_variance[i] = static_cast<float>(moments.variance);
+  }
+  return s;
+}
+
+Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, double alpha) {
+  Misfit out;
+  MisfitSummary& sum = out.summary;
+  sum.frames = frames;
+  sum.pixels = t.size();
+  double nll = 0, nll_expected = 0, nll_variance = 0, hits = 0, pd = 0, z = 0, z2 = 0, inliers = 0;
+  std::vector<double> pit(kPitBins, 0.0);
+  double pit_count = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    nll += f64(s.nll[i]);
+    nll_expected += f64(s.nll_expected[i]);
+    nll_variance += f64(s.nll_variance[i]);
+    const bool returned = t.range_m[i] > 0.0f;
+    sum.returns += returned ? 1 : 0;
+    if (t.ideal_range_m[i] > 0.0f) {
+      hits += 1;
+      pd += f64(t.p_detect[i]);
+      sum.detection_measured += returned ? 1 : 0;
+    }
+    if (s.impossible[i]) (returned ? sum.unexpected_returns : sum.impossible_misses) += 1;
+    if (returned && !s.impossible[i]) {
+      pit[std::min(kPitBins - 1, static_cast<int>(f64(s.pit[i]) * kPitBins))] += 1;
+      pit_count += 1;
+      if (std::abs(f64(s.z[i])) <= kOutlierZ) {
+        z += f64(s.z[i]);
+        z2 += (f64(s.z[i])) * f64(s.z[i]);
+        inliers += 1;
+      }
+    }
+  }
+  const auto n = static_cast<double>(std::max<size_t>(t.size(), 1));
+  sum.nll_per_pixel = nll / n;
+  sum.nll_expected = nll_expected / n;
+  sum.nll_se = std::sqrt(nll_variance) / n;
+  sum.detection_measured = hits > 0 ? sum.detection_measured / hits : 0.0;
+  sum.detection_predicted = hits > 0 ? pd / hits : 0.0;
+  if (inliers > 0) {
+    sum.z_mean = z / inliers;
+    sum.z_std = std::sqrt(std::max(z2 / inliers - sum.z_mean * sum.z_mean, 0.0));
+  }
+  double chi2 = 0.0;
+  for (double& count : pit) {
+    const double expected = pit_count / kPitBins;
+    if (expected > 0) chi2 += (count - expected) * (count - expected) / expected;
+    count = pit_count > 0 ? count / pit_count : 0.0;
+  }
+  sum.pit_histogram = pit;
+  sum.pit_uniformity_p = pit_count > 0 ? 1.0 - chi2_cdf(chi2, kPitBins - 1) : 1.0;
+
+  // Every binning: accumulate over pixels that meet a surface, then summarize and test.
+  const Features features = make_features(t);
+  std::vector<RawTests> raw;
+  for (const auto& names : binnings(features)) {
+    std::vector<const Feature*> fs;
+    for (const auto& name : names) fs.push_back(&features[name]);
+    const int n2 = fs.size() > 1 ? fs[1]->bins() : 1;
+    std::vector<Acc> acc(static_cast<size_t>(fs[0]->bins() * n2));
+    for (size_t i = 0; i < t.size(); ++i) {
+      if (t.ideal_range_m[i] <= 0.0f) continue;
+      const int k0 = fs[0]->bin(fs[0]->value(i));
+      const int k1 = fs.size() > 1 ? fs[1]->bin(fs[1]->value(i)) : 0;
+      if (k0 < 0 || k1 < 0) continue;
+      add_pixel(acc[static_cast<size_t>(k0 * n2 + k1)], t, s, i);
+    }
+    for (size_t k = 0; k < acc.size(); ++k) {
+      if (acc[k].pixels == 0) continue;
+      RawTests tests;
+      BinMisfit bin = summarize(acc[k], tests);
+      const auto k0 = static_cast<int>(k) / n2, k1 = static_cast<int>(k) % n2;
+      const auto public_name = [](const std::string& name) {
+        return name == "beam_group" ? std::string("beam") : name;
+      };
+      bin.region.emplace_back(public_name(fs[0]->name), fs[0]->range_of(k0));
+      if (fs.size() > 1) bin.region.emplace_back(public_name(fs[1]->name), fs[1]->range_of(k1));
+      out.bins.push_back(std::move(bin));
+      raw.push_back(tests);
+    }
+  }
+  // Bonferroni over every test made.
+  for (const RawTests& r : raw) sum.tests += (r.bias >= 0) + (r.spread >= 0) + (r.detection >= 0) + (r.outliers >= 0);
+  const double m = static_cast<double>(std::max<size_t>(sum.tests, 1));
+  const auto corrected = [m](double p) { return p < 0 ? 1.0 : std::min(1.0, p * m); };
+  for (size_t k = 0; k < out.bins.size(); ++k) {
+    BinMisfit& b = out.bins[k];
+    b.p_bias = corrected(raw[k].bias);
+    b.p_spread = corrected(raw[k].spread);
+    b.p_detection = corrected(raw[k].detection);
+    b.p_outliers = corrected(raw[k].outliers);
+    const auto fail = [&](const char* quantity, double p, double measured, double predicted, double nats) {
+      if (p >= alpha) return;
+      const std::string q = quantity;
+      const size_t count = q == "detection" ? b.pixels : q == "outliers" ? b.returns : b.inliers;
+      FailingRegion f{quantity, b.region, measured, predicted, b.pixels, p, nats, nats / static_cast<double>(count),
+                      ""};
+      f.sentence = sentence(f, b);
+      out.failing.push_back(std::move(f));
+    };
+    fail("bias", b.p_bias, b.bias_measured_m, b.bias_predicted_m, b.misfit_bias);
+    fail("spread", b.p_spread, b.spread_measured_m, b.spread_predicted_m, b.misfit_spread);
+    fail("detection", b.p_detection, b.detection_measured, b.detection_predicted, b.misfit_detection);
+    fail("outliers", b.p_outliers, b.outliers_measured, b.outliers_predicted, b.misfit_outliers);
+  }
+  drop_explained_pairs(out.failing);
+  std::stable_sort(out.failing.begin(), out.failing.end(), [](const FailingRegion& a, const FailingRegion& b) {
+    return a.misfit_per_pixel > b.misfit_per_pixel;
+  });
+  return out;
+}
+
+}  // namespace lidartwin

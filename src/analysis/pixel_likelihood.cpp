@@ -1,0 +1,175 @@
+// Per-pixel likelihood of a measurement under the chain's prediction (lidar-physics.md 3.5).
+#include "lidartwin/analysis/pixel_likelihood.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace lidartwin {
+namespace {
+
+constexpr double kSqrtHalf = 0.70710678118654752440;
+
+// The CDF of the returned range (before quantization): the truncated Gaussian mixed with the
+// uniform outlier component, both on the window.
+double range_cdf(const RangeModel& m, double x, double gaussian_mass) {
+  const double width = m.window_max_m - m.window_min_m;
+  const double clipped = std::clamp(x, m.window_min_m, m.window_max_m);
+  const double gaussian =
+      gaussian_mass > 0.0
+          ? normal_interval((m.window_min_m - m.mean_m) / m.sigma_m, (clipped - m.mean_m) / m.sigma_m) / gaussian_mass
+          : 0.0;
+  const double uniform = width > 0.0 ? (clipped - m.window_min_m) / width : 0.0;
+  return std::clamp((1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform, 0.0, 1.0);
+}
+
+double normal_pdf(double x) {
+  return std::isfinite(x) ? std::exp(-0.5 * x * x) / std::sqrt(2.0 * std::numbers::pi) : 0.0;
+}
+
+// Mean and sd of a standard normal truncated to [a, b] (mass = its probability there).
+struct TruncatedMoments {
+  double mean = 0.0;
+  double sd = 1.0;
+};
+TruncatedMoments truncated_moments(double a, double b, double mass) {
+  if (a < -8.0 && b > 8.0) return {};  // the window holds all of it
+  if (mass <= 1e-300) return {};
+  const double pa = normal_pdf(a), pb = normal_pdf(b);
+  const double ta = std::isfinite(a) ? a * pa : 0.0, tb = std::isfinite(b) ? b * pb : 0.0;
+  const double mean = (pa - pb) / mass;
+  const double variance = 1.0 + (ta - tb) / mass - mean * mean;
+  return {mean, std::sqrt(std::max(variance, 1e-12))};
+}
+
+}  // namespace
+
+double normal_cdf(double x) { return 0.5 * std::erfc(-x * kSqrtHalf); }
+
+double normal_interval(double a, double b) {
+  if (b <= a) return 0.0;
+  // Take the difference on the side of the tail the interval lies in, where erfc keeps its digits.
+  if (a >= 0.0) return 0.5 * (std::erfc(a * kSqrtHalf) - std::erfc(b * kSqrtHalf));
+  if (b <= 0.0) return 0.5 * (std::erfc(-b * kSqrtHalf) - std::erfc(-a * kSqrtHalf));
+  return 1.0 - normal_cdf(a) - (1.0 - normal_cdf(b));
+}
+
+RangeModel range_model(const Prediction& prediction, double ideal_range_m, double wire_step_m, double reach_m) {
+  RangeModel m;
+  m.mean_m = ideal_range_m + prediction.bias_m;
+  m.step_m = std::max(prediction.quantization_step_m, wire_step_m);
+  // range_quantization folds Delta^2/12 into the variance for the emulator's moments; here the
+  // interval likelihood accounts for the bins themselves, so that share comes back out.
+  double variance = prediction.variance_m2;
+  if (prediction.quantization_step_m > 0.0) {
+    variance -= prediction.quantization_step_m * prediction.quantization_step_m / 12.0;
+  }
+  m.sigma_m = std::sqrt(std::max(variance, 0.0));
+  m.p_detect = ideal_range_m > 0.0 ? prediction.p_detect : 0.0;
+  m.outlier_mix = prediction.outlier_mix;
+  m.window_min_m = prediction.window_min_m;
+  m.window_max_m = std::min(prediction.window_max_m, reach_m);
+  return m;
+}
+
+PixelScore score_pixel(const RangeModel& m, double measured_range_m, double pit_draw) {
+  PixelScore score;
+  if (measured_range_m <= 0.0) {
+    const double p_miss = 1.0 - m.p_detect;
+    score.impossible = p_miss < kImpossible;
+    score.nll = -std::log(std::max(p_miss, kImpossible));
+    return score;
+  }
+  const double width = std::max(m.window_max_m - m.window_min_m, m.step_m);
+  const double uniform = std::min(1.0, m.step_m / width);  // one bin of the outlier component
+  if (m.p_detect < kImpossible || m.sigma_m <= 0.0) {
+    score.impossible = true;
+    score.nll = -std::log(kImpossible) - std::log(uniform);
+    score.pit = pit_draw;
+    return score;
+  }
+  const double half = 0.5 * m.step_m;
+  const double lo = (measured_range_m - half - m.mean_m) / m.sigma_m;
+  const double hi = (measured_range_m + half - m.mean_m) / m.sigma_m;
+  const double mass = normal_interval((m.window_min_m - m.mean_m) / m.sigma_m, (m.window_max_m - m.mean_m) / m.sigma_m);
+  const double gaussian = mass > 0.0 ? normal_interval(lo, hi) / mass : 0.0;
+  double p_range = (1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform;
+  if (p_range < kImpossible * uniform) {
+    score.impossible = true;
+    p_range = kImpossible * uniform;
+  }
+  score.nll = -std::log(m.p_detect) - std::log(p_range);
+  const TruncatedMoments t =
+      truncated_moments((m.window_min_m - m.mean_m) / m.sigma_m, (m.window_max_m - m.mean_m) / m.sigma_m, mass);
+  score.mean_m = m.mean_m + m.sigma_m * t.mean;
+  score.sd_m = m.sigma_m * t.sd;
+  score.z = (measured_range_m - score.mean_m) / score.sd_m;
+  const double below = range_cdf(m, measured_range_m - half, mass);
+  const double above = range_cdf(m, measured_range_m + half, mass);
+  score.pit = below + pit_draw * (above - below);
+  return score;
+}
+
+NllMoments expected_nll(const RangeModel& m) {
+  if (m.p_detect <= 0.0 || m.sigma_m <= 0.0) return {};
+  const double p = std::min(m.p_detect, 1.0);
+  const double miss_nll = -std::log(std::max(1.0 - p, kImpossible));
+  const double hit_nll = -std::log(p);
+  double entropy = 0.0;   // E[-ln P(bin)] of the quantized Gaussian
+  double variance = 0.0;  // Var[-ln P(bin)]
+  const double a = (m.window_min_m - m.mean_m) / m.sigma_m;
+  const double b = (m.window_max_m - m.mean_m) / m.sigma_m;
+  const double mass = normal_interval(a, b);
+  if (mass <= 1e-300) return {};
+  if (m.sigma_m >= 4.0 * m.step_m) {
+    // Bins much narrower than sigma: the differential entropy of the Gaussian truncated to the
+    // window, less ln(step); -ln f = const + z^2 / 2, so its variance is (E z^4 - (E z^2)^2) / 4,
+    // from the truncated moments m_k = (k - 1) m_(k-2) + (a^(k-1) phi(a) - b^(k-1) phi(b)) / mass.
+    const double pa = normal_pdf(a), pb = normal_pdf(b);
+    const auto edge = [&](int k) {
+      const double ta = std::isfinite(a) ? std::pow(a, k) * pa : 0.0;
+      const double tb = std::isfinite(b) ? std::pow(b, k) * pb : 0.0;
+      return (ta - tb) / mass;
+    };
+    const double m2 = 1.0 + edge(1);
+    const double m4 = 3.0 * m2 + edge(3);
+    entropy =
+        0.5 * std::log(2.0 * std::numbers::pi * m.sigma_m * m.sigma_m) + std::log(mass) + 0.5 * m2 - std::log(m.step_m);
+    variance = std::max((m4 - m2 * m2) / 4.0, 0.0);
+  } else {
+    double second = 0.0;
+    const auto first = static_cast<long>(std::floor((m.mean_m - 9.0 * m.sigma_m) / m.step_m));
+    const auto last = static_cast<long>(std::ceil((m.mean_m + 9.0 * m.sigma_m) / m.step_m));
+    for (long k = first; k <= last; ++k) {
+      const double centre = static_cast<double>(k) * m.step_m;
+      if (centre < m.window_min_m - 0.5 * m.step_m || centre > m.window_max_m + 0.5 * m.step_m) continue;
+      const double q = normal_interval((centre - 0.5 * m.step_m - m.mean_m) / m.sigma_m,
+                                       (centre + 0.5 * m.step_m - m.mean_m) / m.sigma_m) /
+                       mass;
+      if (q <= 0.0) continue;
+      entropy -= q * std::log(q);
+      second += q * std::log(q) * std::log(q);
+    }
+    variance = std::max(second - entropy * entropy, 0.0);
+  }
+  // The outlier component: a return is Gaussian with weight 1 - pi, costing its bin's NLL less
+  // ln(1 - pi), or uniform with weight pi, costing -ln(pi * step / width) (each density negligible
+  // where the other dominates, which holds for the small weights effects give it).
+  const double pi = std::clamp(m.outlier_mix, 0.0, 1.0);
+  double range_mean = entropy, range_square = variance + entropy * entropy;
+  if (pi > 0.0) {
+    const double width = std::max(m.window_max_m - m.window_min_m, m.step_m);
+    const double gaussian = entropy - std::log1p(-std::min(pi, 1.0 - 1e-12));
+    const double uniform = -std::log(pi * std::min(1.0, m.step_m / width));
+    range_mean = (1.0 - pi) * gaussian + pi * uniform;
+    range_square = (1.0 - pi) * (variance + gaussian * gaussian) + pi * uniform * uniform;
+  }
+  NllMoments moments;
+  moments.mean = (1.0 - p) * miss_nll + p * (hit_nll + range_mean);
+  const double square =
+      (1.0 - p) * miss_nll * miss_nll + p * (hit_nll * hit_nll + 2.0 * hit_nll * range_mean + range_square);
+  moments.variance = std::max(square - moments.mean * moments.mean, 0.0);
+  return moments;
+}
+
+}  // namespace lidartwin

@@ -1,0 +1,160 @@
+// The capture beside the model: cast the capture's beams at each column's time and pose, run the
+// chain's predict, keep what was measured.
+#include "lidartwin/analysis/pixel_table.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "lidartwin/analysis/pixel_likelihood.h"
+#include "lidartwin/caster/beam_geometry.h"
+#include "lidartwin/caster/column_caster.h"
+#include "lidartwin/error.h"
+#include "lidartwin/packet/lidar_packet.h"
+
+namespace lidartwin {
+namespace {
+
+struct ObservedColumn {
+  uint32_t frame = 0;
+  int column = 0;
+  size_t first_pixel = 0;
+};
+
+bool column_valid(const Scan& scan, int m, UdpProfileLidar profile, int columns_per_packet) {
+  if (scan.packet_received[static_cast<size_t>(m / columns_per_packet)] == 0) return false;
+  const uint32_t status = scan.status[static_cast<size_t>(m)];
+  return profile == UdpProfileLidar::kLegacy ? status == 0xFFFF'FFFFu : (status & 1u) != 0;
+}
+
+float channel_value(const Scan& scan, ChannelField field, int m, int r, float scale) {
+  return scan.has(field) ? static_cast<float>(scan.at(field, m, r)) * scale : 0.0f;
+}
+
+// signal_multiplier scales SIGNAL as the sensor's config says (protocol doc 3.5); 1 when absent.
+float signal_gain_of(const Metadata& metadata) {
+  const auto it = metadata.config_params.find("signal_multiplier");
+  return it != metadata.config_params.end() && it->is_number() ? it->get<float>() : 1.0f;
+}
+
+}  // namespace
+
+void PixelTable::resize(size_t n) {
+  for (auto* v : {&frame}) v->resize(n);
+  for (auto* v : {&beam, &column, &material}) v->resize(n);
+  time_s.resize(n);
+  for (auto* v : {&range_m, &signal, &reflectivity, &near_ir, &range2_m, &ideal_range_m, &incidence_deg,
+                  &material_reflectivity, &azimuth_deg, &predicted_bias_m, &predicted_sigma_m, &p_detect, &outlier_mix,
+                  &expected_signal, &expected_near_ir, &window_min_m, &window_max_m, &step_m}) {
+    v->resize(n);
+  }
+  for (auto* v : {&retro, &edge}) v->resize(n);
+}
+
+PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
+  const Metadata& metadata = setup.capture.metadata;
+  const LidarDataFormat& format = metadata.format;
+  const PacketFormat packets(format);
+  const int width = format.columns_per_frame;
+  const int height = format.pixels_per_column;
+  const BeamGeometry geometry(metadata.beams, width);
+  const double wire_max_m = packets.channel_max(ChannelField::kRange) / 1000.0;
+  const auto reach = static_cast<float>(std::min(setup.max_range_m + 1.0, wire_max_m));
+  const ColumnCaster caster(setup.scene, geometry, reach);
+
+  ColumnContext context;
+  context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
+  context.max_wire_range_m = static_cast<float>(wire_max_m);
+  context.signal_gain = signal_gain_of(metadata);
+
+  // Which columns were observed, and where their pixels go; pose times checked before any cast.
+  std::vector<ObservedColumn> observed;
+  const PoseSpan span = setup.poses.span();
+  for (size_t f = 0; f < setup.capture.frames.size(); ++f) {
+    const Scan& scan = setup.capture.frames[f].scan;
+    for (int m = 0; m < width; ++m) {
+      if (!column_valid(scan, m, format.udp_profile_lidar, format.columns_per_packet)) continue;
+      const double t = static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9 + setup.time_offset_s;
+      if (!span.contains(t)) {
+        throw InputError(fmt::format(
+            "--pose: frame {} column {} was measured at {:.6f} s (capture clock{}), outside the poses' span "
+            "[{:.6f}, {:.6f}] s; shift the poses with --time-offset or give a trajectory that covers the capture",
+            f, m, t - setup.time_offset_s,
+            setup.time_offset_s != 0.0 ? fmt::format(", {:+.6f} s offset", setup.time_offset_s) : "", span.begin_s,
+            span.end_s));
+      }
+      observed.push_back({static_cast<uint32_t>(f), m, observed.size() * static_cast<size_t>(height)});
+    }
+  }
+  PixelTable table;
+  table.resize(observed.size() * static_cast<size_t>(height));
+
+  std::atomic<bool> no_spread{false};
+  std::vector<std::vector<IdealReturn>> scratch(static_cast<size_t>(pool.size()),
+                                                std::vector<IdealReturn>(static_cast<size_t>(height)));
+  constexpr int kColumnsPerItem = 16;
+  const int items = static_cast<int>((observed.size() + kColumnsPerItem - 1) / kColumnsPerItem);
+  pool.run(items, [&](int worker, int item) {
+    std::vector<IdealReturn>& ideal = scratch[static_cast<size_t>(worker)];
+    const size_t end = std::min(observed.size(), static_cast<size_t>(item + 1) * kColumnsPerItem);
+    for (size_t i = static_cast<size_t>(item) * kColumnsPerItem; i < end; ++i) {
+      const ObservedColumn& oc = observed[i];
+      const Scan& scan = setup.capture.frames[oc.frame].scan;
+      const int m = oc.column;
+      const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
+      const double time_s = static_cast<double>(stamp) * 1e-9;
+      caster.cast(m, setup.poses.at(time_s + setup.time_offset_s), ideal);
+      ColumnContext column_context = context;
+      column_context.frame = oc.frame;
+      column_context.column = static_cast<uint32_t>(m);
+      const float azimuth = static_cast<float>(360.0 - 360.0 * m / width);
+      for (int r = 0; r < height; ++r) {
+        const size_t p = oc.first_pixel + static_cast<size_t>(r);
+        const IdealReturn& hit = ideal[static_cast<size_t>(r)];
+        const Prediction prediction = setup.chain.predict(hit, column_context);
+        const RangeModel model = range_model(prediction, hit.range_m, context.range_step_m, reach);
+        if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
+        table.frame[p] = oc.frame;
+        table.beam[p] = static_cast<uint16_t>(r);
+        table.column[p] = static_cast<uint16_t>(m);
+        table.time_s[p] = time_s;
+        table.range_m[p] = channel_value(scan, ChannelField::kRange, m, r, 0.001f);
+        table.signal[p] = channel_value(scan, ChannelField::kSignal, m, r, 1.0f);
+        table.reflectivity[p] = channel_value(scan, ChannelField::kReflectivity, m, r, 1.0f);
+        table.near_ir[p] = channel_value(scan, ChannelField::kNearIr, m, r, 1.0f);
+        table.range2_m[p] = channel_value(scan, ChannelField::kRange2, m, r, 0.001f);
+        table.ideal_range_m[p] = hit.range_m;
+        table.incidence_deg[p] =
+            hit.hit() ? static_cast<float>(std::acos(std::clamp(static_cast<double>(hit.cos_incidence), 0.0, 1.0)) *
+                                           180.0 / std::numbers::pi)
+                      : 0.0f;
+        table.material_reflectivity[p] = hit.reflectivity;
+        table.material[p] = static_cast<uint16_t>(hit.hit() ? hit.material_id : 0xFFFF);
+        table.retro[p] = hit.retroreflective;
+        table.edge[p] = hit.edge;
+        table.azimuth_deg[p] = azimuth;
+        table.predicted_bias_m[p] = static_cast<float>(prediction.bias_m);
+        table.predicted_sigma_m[p] = static_cast<float>(model.sigma_m);
+        table.p_detect[p] = static_cast<float>(model.p_detect);
+        table.outlier_mix[p] = static_cast<float>(model.outlier_mix);
+        table.expected_signal[p] = static_cast<float>(prediction.signal_photons);
+        table.expected_near_ir[p] = static_cast<float>(prediction.near_ir_photons);
+        table.window_min_m[p] = static_cast<float>(model.window_min_m);
+        table.window_max_m[p] = static_cast<float>(model.window_max_m);
+        table.step_m[p] = static_cast<float>(model.step_m);
+      }
+    }
+  });
+  if (no_spread) {
+    throw InputError(
+        "--profile: its effect chain predicts no range spread (variance 0) for pixels it detects, so no measured "
+        "range can be scored against it; compare needs a profile with a range noise effect (e.g. "
+        "range_noise_linear or range_noise_piecewise)");
+  }
+  return table;
+}
+
+}  // namespace lidartwin

@@ -1,0 +1,110 @@
+// find_misfit on pixel tables made here, where the truth is known: a table drawn from its own
+// prediction fails nowhere; one with a wider spread in one range band fails there, in that band.
+#include "lidartwin/analysis/misfit.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace lidartwin {
+namespace {
+
+// 64 beams x 512 columns x 4 frames of a scene at 1-60 m (by beam and column), the model saying
+// sigma = 20 mm everywhere; the measured spread is wider by `factor` where the ideal range lies
+// in [band_lo, band_hi).
+PixelTable synthetic(double factor, double band_lo, double band_hi, double bias_m = 0.0) {
+  std::mt19937_64 rng(7);
+  PixelTable t;
+  const size_t n = 4 * 512 * 64;
+  t.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const auto beam = static_cast<uint16_t>(i % 64);
+    const auto column = static_cast<uint16_t>(i / 64 % 512);
+    t.frame[i] = static_cast<uint32_t>(i / (64 * 512));
+    t.beam[i] = beam;
+    t.column[i] = column;
+    t.time_s[i] = t.frame[i] * 0.1 + column * 0.1 / 512;
+    const double ideal = 1.0 + 59.0 * ((beam * 7 + column) % 512) / 512.0;
+    t.ideal_range_m[i] = static_cast<float>(ideal);
+    t.incidence_deg[i] = static_cast<float>(beam % 80);
+    t.material_reflectivity[i] = 0.5f;
+    t.azimuth_deg[i] = static_cast<float>(360.0 - 360.0 * column / 512);
+    t.predicted_sigma_m[i] = 0.02f;
+    t.p_detect[i] = 1.0f;
+    t.window_min_m[i] = 0.3f;
+    t.window_max_m[i] = 101.0f;
+    t.step_m[i] = 0.001f;
+    t.expected_signal[i] = 500.0f;
+    t.expected_near_ir[i] = 50.0f;
+    const bool in_band = ideal >= band_lo && ideal < band_hi;
+    std::normal_distribution<double> noise(in_band ? bias_m : 0.0, 0.02 * (in_band ? factor : 1.0));
+    t.range_m[i] = static_cast<float>(std::round((ideal + noise(rng)) * 1000.0) / 1000.0);
+  }
+  return t;
+}
+
+TEST(Misfit, ATableDrawnFromItsOwnPredictionFailsNowhere) {
+  const PixelTable t = synthetic(1.0, 0, 0);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  EXPECT_TRUE(m.failing.empty()) << m.failing.front().sentence;
+  EXPECT_NEAR(m.summary.nll_per_pixel, m.summary.nll_expected, 4 * m.summary.nll_se);
+  EXPECT_GT(m.summary.pit_uniformity_p, 1e-3);
+  EXPECT_NEAR(m.summary.z_std, 1.0, 0.01);
+  EXPECT_GT(m.summary.tests, 100u);
+}
+
+TEST(Misfit, AWiderSpreadInOneRangeBandIsNamedByThatBand) {
+  const PixelTable t = synthetic(2.0, 20.0, 35.0);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  ASSERT_FALSE(m.failing.empty());
+  const FailingRegion& worst = m.failing.front();
+  EXPECT_EQ(worst.quantity, "spread") << worst.sentence;
+  ASSERT_EQ(worst.region.size(), 1u) << worst.sentence;
+  EXPECT_EQ(worst.region[0].first, "range");
+  EXPECT_EQ(worst.region[0].second, (std::array<double, 2>{20.0, 35.0}));
+  // Within 5 model sigma (beyond, returns count as outliers), a spread twice the model's measures
+  // about 1.9 times.
+  EXPECT_NEAR(worst.measured / worst.predicted, 1.9, 0.1);
+  EXPECT_NE(worst.sentence.find("range 20–35 m: the measured spread is 1.9 times the model's"), std::string::npos)
+      << worst.sentence;
+  // Spread, and the tails it brings. Bins of other features fail too, diluted (every beam holds
+  // some of the band); but no other range band does.
+  for (const FailingRegion& f : m.failing) {
+    EXPECT_TRUE(f.quantity == "spread" || f.quantity == "outliers") << f.sentence;
+    EXPECT_LT(f.p_value, 0.01);
+    EXPECT_LT(f.misfit_per_pixel, worst.misfit_per_pixel * 1.0001) << f.sentence;
+    for (const auto& [name, range] : f.region) {
+      if (name == "range") {
+        EXPECT_EQ(range, (std::array<double, 2>{20.0, 35.0})) << f.sentence;
+      }
+    }
+  }
+  EXPECT_GT(m.summary.nll_per_pixel, m.summary.nll_expected + 10 * m.summary.nll_se);
+}
+
+TEST(Misfit, ABiasInOneBandIsNamedWithItsSignAndSize) {
+  const PixelTable t = synthetic(1.0, 8.0, 13.0, -0.03);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  ASSERT_FALSE(m.failing.empty());
+  const FailingRegion& worst = m.failing.front();
+  EXPECT_EQ(worst.quantity, "bias") << worst.sentence;
+  EXPECT_EQ(describe(worst.region), "range 8–13 m");
+  EXPECT_NEAR(worst.measured, -0.03, 0.002);
+  EXPECT_NE(worst.sentence.find("30 mm shorter than the model's"), std::string::npos) << worst.sentence;
+}
+
+TEST(Misfit, MissesWhereTheModelIsCertainFailDetection) {
+  PixelTable t = synthetic(1.0, 0, 0);
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.beam[i] == 5 && i % 3 == 0) t.range_m[i] = 0.0f;  // a third of beam 5 goes missing
+  }
+  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  ASSERT_FALSE(m.failing.empty());
+  EXPECT_EQ(m.failing.front().quantity, "detection");
+  EXPECT_EQ(describe(m.failing.front().region), "beam 5");
+  EXPECT_GT(m.summary.impossible_misses, 0u);
+}
+
+}  // namespace
+}  // namespace lidartwin

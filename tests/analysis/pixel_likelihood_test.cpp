@@ -1,0 +1,121 @@
+// The per-pixel likelihood against draws made here from the distribution it claims to score: if
+// the model is true, the mean NLL is what expected_nll says, PIT is uniform and z is standard.
+#include "lidartwin/analysis/pixel_likelihood.h"
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace lidartwin {
+namespace {
+
+TEST(NormalInterval, KeepsItsDigitsInTheTails) {
+  EXPECT_NEAR(normal_interval(-1.0, 1.0), 0.682689492137086, 1e-14);
+  // Phi(-8) - Phi(-9): the plain CDF difference at +8..+9 would round to 0.
+  EXPECT_NEAR(normal_interval(8.0, 9.0) / 6.2198e-16, 1.0, 1e-3);
+  EXPECT_NEAR(normal_interval(-9.0, -8.0) / 6.2198e-16, 1.0, 1e-3);
+  EXPECT_EQ(normal_interval(1.0, 1.0), 0.0);
+}
+
+struct Case {
+  std::string name;
+  RangeModel model;
+};
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+
+// A draw from the model as the sensor would report it: detected or not, then the truncated
+// Gaussian (rejection) or the uniform outlier, rounded to the bin grid.
+double draw(const RangeModel& m, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  if (u(rng) >= m.p_detect) return 0.0;
+  double r = 0.0;
+  if (u(rng) < m.outlier_mix) {
+    r = m.window_min_m + u(rng) * (m.window_max_m - m.window_min_m);
+  } else {
+    std::normal_distribution<double> n(m.mean_m, m.sigma_m);
+    do r = n(rng);
+    while (r < m.window_min_m || r > m.window_max_m);
+  }
+  return std::round(r / m.step_m) * m.step_m;
+}
+
+class ScorePixelUnderItsModel : public ::testing::TestWithParam<Case> {};
+
+TEST_P(ScorePixelUnderItsModel, NllMatchesItsExpectationAndPitIsUniform) {
+  const RangeModel& m = GetParam().model;
+  std::mt19937_64 rng(42);
+  constexpr int kDraws = 200'000;
+  const NllMoments expected = expected_nll(m);
+  double nll = 0.0, z = 0.0, z2 = 0.0;
+  int returns = 0;
+  std::vector<int> pit(10, 0);
+  for (int i = 0; i < kDraws; ++i) {
+    const double r = draw(m, rng);
+    const PixelScore s = score_pixel(m, r, std::uniform_real_distribution<double>(0, 1)(rng));
+    ASSERT_FALSE(s.impossible) << "range " << r;
+    nll += s.nll;
+    if (r > 0.0 && std::abs(s.z) <= 5.0) {  // the analysis counts returns beyond 5 sigma as outliers
+      ++returns;
+      z += s.z;
+      z2 += s.z * s.z;
+      ++pit[static_cast<size_t>(std::min(9.0, s.pit * 10.0))];
+    }
+  }
+  const double se = std::sqrt(expected.variance / kDraws);
+  EXPECT_NEAR(nll / kDraws, expected.mean, 4.0 * se) << "se " << se;
+  const double zm = z / returns;
+  const double shep = 1.0;  // z is standardized by the truncated Gaussian's sd; bins add step^2/12
+  EXPECT_NEAR(zm, 0.0, 0.02);
+  EXPECT_NEAR(z2 / returns - zm * zm, shep + m.step_m * m.step_m / (12.0 * m.sigma_m * m.sigma_m), 0.03);
+  double chi2 = 0.0;
+  for (const int count : pit) chi2 += std::pow(count - returns / 10.0, 2) / (returns / 10.0);
+  EXPECT_LT(chi2, 30.0) << "PIT not uniform (9 dof; 30 is p < 0.001)";
+}
+
+RangeModel model(double mean, double sigma, double step, double p_detect = 1.0, double lo = 0.3, double hi = 100.0,
+                 double outliers = 0.0) {
+  return {mean, sigma, p_detect, outliers, lo, hi, step};
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, ScorePixelUnderItsModel,
+                         ::testing::Values(Case{"wide_gaussian_1mm_bins", model(12.0, 0.02, 0.001)},
+                                           Case{"narrow_gaussian_exact_bins", model(3.0, 0.0007, 0.001)},
+                                           Case{"rng15_8mm_bins", model(25.0, 0.006, 0.008, 0.9)},
+                                           Case{"truncated_at_max_range", model(100.02, 0.05, 0.001, 0.4)},
+                                           Case{"with_outliers", model(40.0, 0.03, 0.001, 1.0, 0.3, 100.0, 0.001)}),
+                         [](const auto& test_info) { return test_info.param.name; });
+
+TEST(ScorePixel, WhatTheModelRulesOutCostsAFiniteVisibleAmount) {
+  const RangeModel certain = model(10.0, 0.01, 0.001, 1.0);
+  const PixelScore miss = score_pixel(certain, 0.0, 0.5);
+  EXPECT_TRUE(miss.impossible);
+  EXPECT_NEAR(miss.nll, -std::log(kImpossible), 1e-9);
+  const PixelScore far_off = score_pixel(certain, 12.0, 0.5);  // 200 sigma
+  EXPECT_TRUE(far_off.impossible);
+  EXPECT_TRUE(std::isfinite(far_off.nll));
+  const RangeModel nothing_there = model(0.0, 0.0, 0.001, 0.0);
+  const PixelScore ghost = score_pixel(nothing_there, 5.0, 0.5);
+  EXPECT_TRUE(ghost.impossible);
+  EXPECT_GT(ghost.nll, -std::log(kImpossible));
+  EXPECT_FALSE(score_pixel(nothing_there, 0.0, 0.5).impossible);
+  EXPECT_EQ(score_pixel(nothing_there, 0.0, 0.5).nll, 0.0);
+}
+
+TEST(RangeModel, QuantizationVarianceFoldedByTheChainIsTakenBackOut) {
+  Prediction p;
+  p.variance_m2 = 0.01 * 0.01 + 0.008 * 0.008 / 12.0;
+  p.quantization_step_m = 0.008;
+  p.p_detect = 0.7;
+  p.window_min_m = 0.3;
+  const RangeModel m = range_model(p, 20.0, 0.001, 101.0);
+  EXPECT_NEAR(m.sigma_m, 0.01, 1e-12);
+  EXPECT_EQ(m.step_m, 0.008);
+  EXPECT_EQ(m.window_max_m, 101.0);  // an unlimited window ends where the cast stopped looking
+  EXPECT_EQ(range_model(p, 0.0, 0.001, 101.0).p_detect, 0.0);  // no surface, no return
+}
+
+}  // namespace
+}  // namespace lidartwin

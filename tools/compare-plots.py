@@ -1,0 +1,184 @@
+#!/usr/bin/python3
+"""report.json (+ pixels.npz) of `lidartwin compare` -> report.html, one self-contained page.
+
+Usage: tools/compare-plots.py DIR   (DIR holds report.json and pixels.npz; writes DIR/report.html)
+
+Debian's python3-numpy and python3-matplotlib only. Every plot is a PNG embedded as base64, so
+the page opens anywhere without the files next to it. The numbers come from report.json (its
+schema: docs/compare-report.md); the residual histograms read the per-pixel z of pixels.npz.
+"""
+import base64
+import html
+import io
+import json
+import math
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def png(fig):
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return '<img alt="plot" src="data:image/png;base64,%s">' % base64.b64encode(buffer.getvalue()).decode()
+
+
+def bins_of(report, names):
+    """The bins of one binning: those whose features are exactly `names`."""
+    return [b for b in report["bins"] if sorted(b["features"]) == sorted(names)]
+
+
+def heat_map(report, x, y, quantity, title):
+    """A misfit part (nats per pixel) over two features, log colour scale."""
+    bins = bins_of(report, [x, y])
+    if not bins:
+        return ""
+    xs = sorted({tuple(b["features"][x]) for b in bins})
+    ys = sorted({tuple(b["features"][y]) for b in bins})
+    grid = np.full((len(ys), len(xs)), np.nan)
+    for b in bins:
+        count = b["inliers"] if quantity in ("bias", "spread") else b["pixels"]
+        if count > 0:
+            value = b["misfit_nats"][quantity] / count
+            grid[ys.index(tuple(b["features"][y])), xs.index(tuple(b["features"][x]))] = max(value, 1e-6)
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    image = ax.imshow(grid, origin="lower", aspect="auto", cmap="magma",
+                      norm=matplotlib.colors.LogNorm(vmin=1e-4, vmax=max(1e-3, np.nanmax(grid))))
+    ax.set_xticks(range(len(xs)), ["%g–%g" % r for r in xs], rotation=45, ha="right", fontsize=7)
+    ax.set_yticks(range(len(ys)), ["%g–%g" % r for r in ys], fontsize=7)
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.set_title(title, fontsize=10)
+    fig.colorbar(image, ax=ax, label="misfit, nats per pixel")
+    return png(fig)
+
+
+def residual_histograms(directory, report):
+    """Standardized range residuals per range band against the model's density (N(0, 1))."""
+    path = directory / "pixels.npz"
+    if not path.exists():
+        return "<p>pixels.npz not found: no residual histograms.</p>"
+    pixels = np.load(path)
+    z, ideal, measured, impossible = pixels["z"], pixels["ideal_range_m"], pixels["range_m"], pixels["impossible"]
+    keep = (measured > 0) & (ideal > 0) & (impossible == 0)
+    bands = [(0, 5), (5, 13), (13, 35), (35, 1e4)]
+    fig, axes = plt.subplots(1, len(bands), figsize=(12, 2.8), sharey=True)
+    grid = np.linspace(-6, 6, 241)
+    density = np.exp(-0.5 * grid ** 2) / math.sqrt(2 * math.pi)
+    for ax, (lo, hi) in zip(axes, bands):
+        band = z[keep & (ideal >= lo) & (ideal < hi)]
+        if band.size:
+            ax.hist(np.clip(band, -6, 6), bins=120, range=(-6, 6), density=True, color="#4477aa", label="measured")
+        ax.plot(grid, density, color="#cc3311", label="model")
+        ax.set_yscale("log")
+        ax.set_ylim(1e-5, 1)
+        ax.set_title("range %g–%s m (%d returns)" % (lo, "∞" if hi > 1e3 else "%g" % hi, band.size), fontsize=9)
+        ax.set_xlabel("z")
+    axes[0].legend(fontsize=8)
+    return png(fig)
+
+
+def reliability(report):
+    """Measured against predicted detection rate, one point per bin of every single feature."""
+    fig, ax = plt.subplots(figsize=(4, 4))
+    single = [b for b in report["bins"] if len(b["features"]) == 1 and b["pixels"] >= 30]
+    p = [b["detection"]["predicted"] for b in single]
+    m = [b["detection"]["measured"] for b in single]
+    n = [b["pixels"] for b in single]
+    ax.scatter(p, m, s=[max(4, 40 * math.log10(k)) for k in n] if n else 10, alpha=0.5)
+    ax.plot([0, 1], [0, 1], color="gray", lw=1)
+    ax.set_xlabel("predicted detection rate")
+    ax.set_ylabel("measured detection rate")
+    ax.set_title("detection reliability (bins)", fontsize=10)
+    return png(fig)
+
+
+def along(report, feature, label):
+    """Spread ratio and bias difference along one feature (per beam, per azimuth sector)."""
+    bins = sorted(bins_of(report, [feature]), key=lambda b: b["features"][feature][0])
+    if not bins:
+        return ""
+    x = [b["features"][feature][0] for b in bins]
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 4), sharex=True)
+    top.plot(x, [b["spread_ratio"] for b in bins], marker=".")
+    top.axhline(1.0, color="gray", lw=1)
+    top.set_ylabel("spread ratio")
+    bottom.plot(x, [1000 * (b["bias_m"]["measured"] - b["bias_m"]["predicted"]) for b in bins], marker=".")
+    bottom.axhline(0.0, color="gray", lw=1)
+    bottom.set_ylabel("bias misfit, mm")
+    bottom.set_xlabel(label)
+    top.set_title("misfit per %s" % label, fontsize=10)
+    return png(fig)
+
+
+def pit(report):
+    histogram = report["summary"]["pit_histogram"]
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.bar([(k + 0.5) / len(histogram) for k in range(len(histogram))], histogram, width=1 / len(histogram))
+    ax.axhline(1 / len(histogram), color="#cc3311")
+    ax.set_xlabel("PIT")
+    ax.set_ylabel("fraction of returns")
+    ax.set_title("PIT (flat if the model is right; p = %.3g)" % report["summary"]["pit_uniformity_p"], fontsize=10)
+    return png(fig)
+
+
+def page(directory, report):
+    s = report["summary"]
+    inputs = report.get("inputs", {})
+    excess = (s["nll_per_pixel"] - s["nll_expected"]) / s["nll_se"] if s["nll_se"] > 0 else 0.0
+    rows = "".join(
+        "<tr><td>%d</td><td>%s</td><td>%s</td><td>%.2g</td></tr>"
+        % (i + 1, html.escape(f["quantity"]), html.escape(f["sentence"]), f["p_value"])
+        for i, f in enumerate(report["failing"][:25]))
+    failing = ("<table><tr><th>#</th><th>quantity</th><th>where and how</th><th>p (corrected)</th></tr>%s</table>"
+               % rows) if rows else "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"])
+    sections = [
+        ("Where the model fails", failing),
+        ("Spread misfit: range × incidence", heat_map(report, "range", "incidence", "spread", "spread part of the misfit")),
+        ("Bias misfit: range × incidence", heat_map(report, "range", "incidence", "bias", "bias part of the misfit")),
+        ("Spread misfit: range × reflectivity",
+         heat_map(report, "range", "reflectivity", "spread", "spread part of the misfit")),
+        ("Bias misfit: range × reflectivity", heat_map(report, "range", "reflectivity", "bias", "bias part of the misfit")),
+        ("Range residuals per range band", residual_histograms(directory, report)),
+        ("Detection", reliability(report)),
+        ("PIT", pit(report)),
+        ("Per beam", along(report, "beam", "beam")),
+        ("Per azimuth", along(report, "azimuth", "azimuth (°)")),
+    ]
+    body = "".join("<h2>%s</h2>%s" % (title, content) for title, content in sections if content)
+    return """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>lidartwin compare: %s</title>
+<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
+table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;text-align:left}
+.summary td:first-child{font-weight:bold}</style></head><body>
+<h1>lidartwin compare</h1>
+<p>%s compared with profile <b>%s</b></p>
+<table class="summary">
+<tr><td>frames, pixels, returns</td><td>%d, %d, %d</td></tr>
+<tr><td>NLL per pixel</td><td>%.4f (expected %.4f ± %.4f if the model were true: %+.1f standard errors)</td></tr>
+<tr><td>detection</td><td>%.2f %% measured, %.2f %% predicted</td></tr>
+<tr><td>range z</td><td>mean %+.3f, std %.3f</td></tr>
+<tr><td>failing regions</td><td>%d (alpha %g, %d tests, Bonferroni)</td></tr>
+</table>%s</body></html>
+""" % (html.escape(str(inputs.get("capture", ""))), html.escape(str(inputs.get("capture", "the capture"))),
+       html.escape(str(inputs.get("profile", "?"))), s["frames"], s["pixels"], s["returns"], s["nll_per_pixel"],
+       s["nll_expected"], s["nll_se"], excess, 100 * s["detection"]["measured"], 100 * s["detection"]["predicted"],
+       s["z"]["mean"], s["z"]["std"], len(report["failing"]), s["alpha"], s["tests"], body)
+
+
+def main():
+    if len(sys.argv) != 2:
+        sys.exit(__doc__)
+    directory = Path(sys.argv[1])
+    report = json.loads((directory / "report.json").read_text())
+    (directory / "report.html").write_text(page(directory, report), encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
