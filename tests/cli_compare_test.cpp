@@ -2,11 +2,15 @@
 // profile that made a capture fits it (no failing region, NLL at its expectation, PIT uniform);
 // the paper's linear profile against a datasheet capture fails in the range bands where the two
 // laws differ, in the right direction; inputs that do not belong together are refused, clearly.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
 #include <string>
+#include <vector>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -31,7 +35,8 @@ std::string slurp(const fs::path& path) {
 
 CliRun lidartwin(const std::string& arguments) {
   static int calls = 0;
-  const fs::path err = fs::path(testing::TempDir()) / ("compare_stderr_" + std::to_string(++calls));
+  const fs::path err =
+      fs::path(testing::TempDir()) / ("compare_stderr_" + std::to_string(getpid()) + "_" + std::to_string(++calls));
   const std::string command = std::string(LIDARTWIN_BINARY) + " " + arguments + " 2>" + err.string();
   CliRun run;
   FILE* pipe = popen(command.c_str(), "r");
@@ -40,6 +45,7 @@ CliRun lidartwin(const std::string& arguments) {
   const int status = pclose(pipe);
   run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   run.err = slurp(err);
+  fs::remove(err);
   return run;
 }
 
@@ -48,15 +54,22 @@ nlohmann::json read_json(const fs::path& path) { return nlohmann::json::parse(sl
 class Compare : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    hall_ = fs::path(testing::TempDir()) / "compare_hall_os1-64";
+    // ctest runs each test as its own process, several at once: each records its own capture.
+    hall_ = fs::path(testing::TempDir()) / ("compare_hall_os1-64_" + std::to_string(getpid()));
     fs::remove_all(hall_);
     const CliRun r = lidartwin("record --profile os1-64 --scene " + kHall + " --trajectory " + kHallPose +
                                " --frames 20 --seed 11 --out " + hall_.string());
     ASSERT_EQ(r.code, 0) << r.err;
   }
+  // The outputs are large (pixels.npz holds every pixel): none outlives the test process.
+  static void TearDownTestSuite() {
+    for (const fs::path& dir : made_) fs::remove_all(dir);
+    fs::remove_all(hall_);
+  }
   static fs::path out(const std::string& name) {
-    const fs::path dir = fs::path(testing::TempDir()) / ("compare_out_" + name);
+    const fs::path dir = fs::path(testing::TempDir()) / ("compare_out_" + name + "_" + std::to_string(getpid()));
     fs::remove_all(dir);
+    made_.push_back(dir);
     return dir;
   }
   // Runs compare on the hall capture with extra arguments; expects it to fail and returns stderr,
@@ -69,6 +82,7 @@ class Compare : public ::testing::Test {
     return r.err;
   }
   static inline fs::path hall_;
+  static inline std::vector<fs::path> made_;
 };
 
 TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
@@ -120,9 +134,47 @@ TEST_F(Compare, ThePapersLinearLawFailsTheDatasheetCaptureInTheRangeBandsWhereTh
   EXPECT_GT(report["summary"]["nll_per_pixel"].get<double>() + 0.0, 0.0);
 }
 
+// Static mode, no scene: the temporal spread of each pixel of a motionless sensor against the
+// datasheet's sigma (10 mm to 20 m, 20 mm to 50 m), read from the report's range bins.
+TEST_F(Compare, StaticModeFindsTheProfilesPrecisionWithoutAScene) {
+  const fs::path dir = out("static");
+  const CliRun r = lidartwin("compare --static --capture " + hall_.string() + " --profile os1-64 --out " +
+                             dir.string() + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json report = read_json(dir / "report.json");
+  EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];
+  EXPECT_TRUE(report["inputs"]["static"].get<bool>());
+  const double about_mean = std::sqrt(1.0 - 1.0 / 20.0);  // residuals about a 20-frame mean
+  int checked = 0;
+  for (const auto& bin : report["bins"]) {
+    const auto& features = bin["features"];
+    if (features.size() != 1 || !features.contains("range") || bin["inliers"].get<size_t>() < 2000) continue;
+    const double lo = features["range"][0], hi = features["range"][1];
+    const double sigma = hi <= 20.0 && lo >= 1.0 ? 0.010 : lo >= 20.0 && hi <= 35.0 ? 0.020 : 0.0;
+    if (sigma == 0.0) continue;
+    EXPECT_NEAR(bin["spread_m"]["measured"].get<double>() / about_mean / sigma, 1.0, 0.05) << bin.dump();
+    EXPECT_NEAR(bin["spread_ratio"].get<double>(), 1.0, 0.05) << bin.dump();
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
+  for (const auto& bin : report["bins"]) EXPECT_FALSE(bin["features"].contains("incidence"));
+}
+
+TEST_F(Compare, StaticModeAgainstThePapersLawFailsItsSpread) {
+  const fs::path dir = out("static_paper");
+  const CliRun r = lidartwin("compare --static --capture " + hall_.string() + " --profile os1-32-paper --out " +
+                             dir.string() + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json report = read_json(dir / "report.json");
+  ASSERT_FALSE(report["failing"].empty());
+  EXPECT_EQ(report["failing"][0]["quantity"], "spread");
+  for (const auto& f : report["failing"]) EXPECT_NE(f["quantity"], "bias") << f["sentence"];
+}
+
 TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {
-  const fs::path other = fs::path(testing::TempDir()) / "compare_hall_512";
+  const fs::path other = fs::path(testing::TempDir()) / ("compare_hall_512_" + std::to_string(getpid()));
   fs::remove_all(other);
+  made_.push_back(other);
   ASSERT_EQ(lidartwin("record --profile os1-64 --scene " + kHall + " --trajectory " + kHallPose +
                       " --mode 512x10 --frames 4 --seed 11 --out " + other.string())
                 .code,
@@ -133,12 +185,13 @@ TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {
                      "has 32)"),
             std::string::npos)
       << err;
-  EXPECT_NE(err.find("compare_hall_512/capture.pcap"), std::string::npos) << err;
+  EXPECT_NE(err.find(other.string() + "/capture.pcap"), std::string::npos) << err;
 }
 
 TEST_F(Compare, ACaptureOfAnotherSessionThanItsMetadataIsRefused) {
-  const fs::path other = fs::path(testing::TempDir()) / "compare_hall_seed12";
+  const fs::path other = fs::path(testing::TempDir()) / ("compare_hall_seed12_" + std::to_string(getpid()));
   fs::remove_all(other);
+  made_.push_back(other);
   ASSERT_EQ(lidartwin("record --profile os1-64 --scene " + kHall + " --trajectory " + kHallPose +
                       " --frames 2 --seed 12 --out " + other.string())
                 .code,
@@ -149,7 +202,7 @@ TEST_F(Compare, ACaptureOfAnotherSessionThanItsMetadataIsRefused) {
 }
 
 TEST_F(Compare, PosesThatDoNotCoverTheCaptureAreRefused) {
-  const fs::path poses = fs::path(testing::TempDir()) / "late_poses.tum";
+  const fs::path poses = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_late_poses.tum");
   std::ofstream(poses) << "50 0 0 4 0 0 0 1\n51 0 0 4 0 0 0 1\n";
   const std::string err = refused("--capture " + hall_.string() + " --pose " + poses.string() + " --profile os1-64");
   EXPECT_NE(err.find("outside the poses' span [49.999999, 51.000001] s"), std::string::npos) << err;
@@ -157,7 +210,7 @@ TEST_F(Compare, PosesThatDoNotCoverTheCaptureAreRefused) {
 }
 
 TEST_F(Compare, APoseFromWhichTheSceneIsOutOfSightIsRefused) {
-  const fs::path poses = fs::path(testing::TempDir()) / "far_pose.tum";
+  const fs::path poses = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_far_pose.tum");
   std::ofstream(poses) << "0 5000 5000 5000 0 0 0 1\n";
   const std::string err = refused("--capture " + hall_.string() + " --pose " + poses.string() + " --profile os1-64");
   EXPECT_NE(err.find("no beam of the capture meets a surface of the scene"), std::string::npos) << err;
@@ -166,7 +219,7 @@ TEST_F(Compare, APoseFromWhichTheSceneIsOutOfSightIsRefused) {
 TEST_F(Compare, AProfileWithoutRangeNoiseCannotBeScoredAndSaysWhy) {
   nlohmann::json profile = read_json(kSource + "/profiles/os1-64.json");
   profile["effects"] = {{{"name", "radiometry"}}, {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}}};
-  const fs::path path = fs::path(testing::TempDir()) / "noiseless.json";
+  const fs::path path = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_noiseless.json");
   std::ofstream(path) << profile.dump();
   const std::string err = refused("--capture " + hall_.string() + " --profile " + path.string());
   EXPECT_NE(err.find("predicts no range spread"), std::string::npos) << err;

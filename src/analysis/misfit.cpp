@@ -115,7 +115,7 @@ Features make_features(const PixelTable& t) {
 }
 
 // The binnings reported: each feature alone, and the pairs the physics says interact (3.2).
-std::vector<std::vector<std::string>> binnings(const Features& f) {
+std::vector<std::vector<std::string>> binnings(const Features& f, bool static_mode) {
   std::vector<std::vector<std::string>> out;
   for (const char* name : {"range", "incidence", "reflectivity", "signal", "near_ir", "beam", "azimuth", "time", "edge",
                            "retro", "material"}) {
@@ -126,6 +126,13 @@ std::vector<std::vector<std::string>> binnings(const Features& f) {
   out.push_back({"range", "beam_group"});
   out.push_back({"azimuth", "range"});
   out.push_back({"range", "edge"});
+  if (static_mode) {  // what needs the scene's surfaces is unknown
+    std::erase_if(out, [](const std::vector<std::string>& names) {
+      return std::ranges::any_of(names, [](const std::string& n) {
+        return n == "incidence" || n == "material" || n == "retro" || n == "edge";
+      });
+    });
+  }
   return out;
 }
 
@@ -368,7 +375,8 @@ PixelScores score_pixels(const PixelTable& t, uint64_t seed) {
   return s;
 }
 
-Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, double alpha) {
+Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, const MisfitOptions& options) {
+  const double alpha = options.alpha;
   Misfit out;
   MisfitSummary& sum = out.summary;
   sum.frames = frames;
@@ -420,7 +428,7 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, dou
   // Every binning: accumulate over pixels that meet a surface, then summarize and test.
   const Features features = make_features(t);
   std::vector<RawTests> raw;
-  for (const auto& names : binnings(features)) {
+  for (const auto& names : binnings(features, options.static_mode)) {
     std::vector<const Feature*> fs;
     for (const auto& name : names) fs.push_back(&features[name]);
     const int n2 = fs.size() > 1 ? fs[1]->bins() : 1;
@@ -436,6 +444,7 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, dou
       if (acc[k].pixels == 0) continue;
       RawTests tests;
       BinMisfit bin = summarize(acc[k], tests);
+      if (options.static_mode) tests.bias = -1;  // the mean is the data's own
       const auto k0 = static_cast<int>(k) / n2, k1 = static_cast<int>(k) % n2;
       const auto public_name = [](const std::string& name) {
         return name == "beam_group" ? std::string("beam") : name;

@@ -1,5 +1,6 @@
 // `lidartwin compare`: a measured capture against the model of a profile, pixel by pixel, and a
 // report of where the model fails (DIR/report.json, DIR/pixels.npz, DIR/report.html).
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -18,6 +19,7 @@
 #include "lidartwin/analysis/measured_capture.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/analysis/static_table.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/pose/pose_source.h"
@@ -43,6 +45,7 @@ struct CompareFlags {
   int threads = 0;
   size_t show = 10;
   bool plots = true;
+  bool static_mode = false;
 };
 
 // A `record` output directory stands for its capture, metadata and ground-truth poses.
@@ -59,8 +62,12 @@ Inputs resolve_inputs(const CompareFlags& flags) {
   }
   if (!fs::is_regular_file(in.capture)) throw InputError("--capture " + in.capture.string() + ": no such capture file");
   if (in.metadata.empty()) throw InputError("compare: give --metadata (the capture's sensor metadata JSON)");
-  if (in.pose.empty())
+  if (flags.static_mode) return {in.capture, in.metadata, {}};
+  if (flags.scene.empty())
+    throw InputError("compare: give --scene (the glTF scene of the measured place), or --static");
+  if (in.pose.empty()) {
     throw InputError("compare: give --pose (a TUM file: one line for a static sensor, or a trajectory)");
+  }
   return in;
 }
 
@@ -121,34 +128,42 @@ void write_json(const fs::path& path, const nlohmann::json& json) {
   if (!out) throw InputError(path.string() + ": write failed");
 }
 
-int run_compare(const CompareFlags& flags) {
-  const Inputs in = resolve_inputs(flags);
-  const SensorProfile profile = load_profile(flags.profile);
-  const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+// The capture beside the scene: its beams cast at each column's time and pose.
+PixelTable scene_table(const CompareFlags& flags, const Inputs& in, const MeasuredCapture& capture,
+                       const EffectChain& chain, const SensorProfile& profile, Steps& steps) {
   const std::unique_ptr<PoseSource> poses = load_measured_poses(in.pose);
-  Steps steps;
-  steps.start("reading the capture");
-  const MeasuredCapture capture = read_capture(in.capture, in.metadata, flags.frames);
-  steps.done();
   steps.start("loading the scene");
   const Scene scene = Scene::load(flags.scene);
   steps.done();
   steps.start("casting the capture's beams and predicting every pixel");
   WorkerPool pool(flags.threads);
-  const PixelTable table =
-      build_pixel_table({capture, scene, *poses, flags.time_offset_s, chain, profile.max_range_m}, pool);
+  PixelTable table = build_pixel_table({capture, scene, *poses, flags.time_offset_s, chain, profile.max_range_m}, pool);
   steps.done();
-  size_t hits = 0;
-  for (const float r : table.ideal_range_m) hits += r > 0.0f ? 1 : 0;
-  if (hits == 0) {
+  if (std::ranges::none_of(table.ideal_range_m, [](float r) { return r > 0.0f; })) {
     throw InputError(
         fmt::format("--scene {} with --pose {}: no beam of the capture meets a surface of the scene (is "
                     "the pose in the scene's world frame, Z up, and inside its bounds?)",
                     flags.scene, in.pose.string()));
   }
+  return table;
+}
+
+int run_compare(const CompareFlags& flags) {
+  const Inputs in = resolve_inputs(flags);
+  const SensorProfile profile = load_profile(flags.profile);
+  const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  Steps steps;
+  steps.start("reading the capture");
+  const MeasuredCapture capture = read_capture(in.capture, in.metadata, flags.frames);
+  steps.done();
+  const PixelTable table = flags.static_mode ? build_static_table({capture, chain, profile.max_range_m})
+                                             : scene_table(flags, in, capture, chain, profile, steps);
   steps.start("scoring and binning");
   const PixelScores scores = score_pixels(table, flags.seed);
-  const Misfit misfit = find_misfit(table, scores, capture.frames.size(), flags.alpha);
+  MisfitOptions options;
+  options.alpha = flags.alpha;
+  options.static_mode = flags.static_mode;
+  const Misfit misfit = find_misfit(table, scores, capture.frames.size(), options);
   steps.done();
 
   fs::create_directories(flags.out);
@@ -157,6 +172,7 @@ int run_compare(const CompareFlags& flags) {
       {"metadata", in.metadata.string()},
       {"scene", flags.scene},
       {"pose", in.pose.string()},
+      {"static", flags.static_mode},
       {"profile", profile.name},
       {"time_offset_s", flags.time_offset_s},
       {"frames", capture.frames.size()},
@@ -201,16 +217,24 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
       "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/pixels.npz");
   sub->add_option("--capture", flags->capture, "capture .pcap, or a `lidartwin record` output directory")->required();
   sub->add_option("--metadata", flags->metadata, "the capture's sensor metadata JSON (FW 2.x/3.x)");
-  sub->add_option("--scene", flags->scene, "glTF scene (.glb/.gltf) of the measured place")
-      ->required()
-      ->check(CLI::ExistingFile);
-  sub->add_option("--pose", flags->pose,
-                  "TUM file of world_from_sensor: one line for a static sensor, or a trajectory on the capture's clock")
-      ->check(CLI::ExistingFile);
+  auto* scene = sub->add_option("--scene", flags->scene, "glTF scene (.glb/.gltf) of the measured place")
+                    ->check(CLI::ExistingFile);
+  auto* pose =
+      sub->add_option(
+             "--pose", flags->pose,
+             "TUM file of world_from_sensor: one line for a static sensor, or a trajectory on the capture's clock")
+          ->check(CLI::ExistingFile);
   sub->add_option("--profile", flags->profile, "profile whose effect chain is compared (name or .json)")->required();
   sub->add_option("--out", flags->out, "output directory (created)")->required();
-  sub->add_option("--time-offset", flags->time_offset_s, "seconds added to column timestamps to get pose times")
-      ->capture_default_str();
+  auto* offset =
+      sub->add_option("--time-offset", flags->time_offset_s, "seconds added to column timestamps to get pose times")
+          ->capture_default_str();
+  sub->add_flag("--static", flags->static_mode,
+                "no scene: a motionless sensor's repeated frames, each pixel's temporal spread and detection against "
+                "the profile's prediction at its measured range")
+      ->excludes(scene)
+      ->excludes(pose)
+      ->excludes(offset);
   sub->add_option("--frames", flags->frames, "compare at most this many frames (0 = all)")->capture_default_str();
   sub->add_option("--alpha", flags->alpha, "significance level, after correction for the number of tests")
       ->check(CLI::Range(1e-12, 0.5))

@@ -46,7 +46,7 @@ PixelTable synthetic(double factor, double band_lo, double band_hi, double bias_
 
 TEST(Misfit, ATableDrawnFromItsOwnPredictionFailsNowhere) {
   const PixelTable t = synthetic(1.0, 0, 0);
-  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, {});
   EXPECT_TRUE(m.failing.empty()) << m.failing.front().sentence;
   EXPECT_NEAR(m.summary.nll_per_pixel, m.summary.nll_expected, 4 * m.summary.nll_se);
   EXPECT_GT(m.summary.pit_uniformity_p, 1e-3);
@@ -56,7 +56,7 @@ TEST(Misfit, ATableDrawnFromItsOwnPredictionFailsNowhere) {
 
 TEST(Misfit, AWiderSpreadInOneRangeBandIsNamedByThatBand) {
   const PixelTable t = synthetic(2.0, 20.0, 35.0);
-  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, {});
   ASSERT_FALSE(m.failing.empty());
   const FailingRegion& worst = m.failing.front();
   EXPECT_EQ(worst.quantity, "spread") << worst.sentence;
@@ -85,7 +85,7 @@ TEST(Misfit, AWiderSpreadInOneRangeBandIsNamedByThatBand) {
 
 TEST(Misfit, ABiasInOneBandIsNamedWithItsSignAndSize) {
   const PixelTable t = synthetic(1.0, 8.0, 13.0, -0.03);
-  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, {});
   ASSERT_FALSE(m.failing.empty());
   const FailingRegion& worst = m.failing.front();
   EXPECT_EQ(worst.quantity, "bias") << worst.sentence;
@@ -99,7 +99,7 @@ TEST(Misfit, MissesWhereTheModelIsCertainFailDetection) {
   for (size_t i = 0; i < t.size(); ++i) {
     if (t.beam[i] == 5 && i % 3 == 0) t.range_m[i] = 0.0f;  // a third of beam 5 goes missing
   }
-  const Misfit m = find_misfit(t, score_pixels(t), 4, 0.01);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, {});
   ASSERT_FALSE(m.failing.empty());
   EXPECT_EQ(m.failing.front().quantity, "detection");
   EXPECT_EQ(describe(m.failing.front().region), "beam 5");

@@ -84,7 +84,13 @@ struct Misfit {
   std::vector<FailingRegion> failing;
 };
 
-Misfit find_misfit(const PixelTable& table, const PixelScores& scores, size_t frames, double alpha);
+struct MisfitOptions {
+  double alpha = 0.01;  // significance level after the correction
+  // Static mode (static_table.h): the ideal range is each pixel's own temporal mean, so bias is
+  // not tested, and the features that need a scene (incidence, material, retro, edge) are not binned.
+  bool static_mode = false;
+};
+Misfit find_misfit(const PixelTable& table, const PixelScores& scores, size_t frames, const MisfitOptions& options);
 
 // "range 20-35 m, incidence 60-75°"
 std::string describe(const Region& region);

@@ -1,0 +1,147 @@
+// Static mode's pixel table: each pixel's temporal mean stands in for the ideal range.
+#include "lidartwin/analysis/static_table.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "lidartwin/analysis/pixel_likelihood.h"
+#include "lidartwin/error.h"
+#include "lidartwin/packet/lidar_packet.h"
+
+namespace lidartwin {
+namespace {
+
+constexpr size_t kMinFrames = 5;
+
+struct Series {
+  size_t returns = 0;
+  double sum = 0.0, sum2 = 0.0, reflectivity = 0.0;
+};
+
+}  // namespace
+
+PixelTable build_static_table(const StaticTableSetup& setup) {
+  const MeasuredCapture& capture = setup.capture;
+  const LidarDataFormat& format = capture.metadata.format;
+  const int width = format.columns_per_frame;
+  const int height = format.pixels_per_column;
+  const size_t frames = capture.frames.size();
+  if (frames < kMinFrames) {
+    throw InputError(fmt::format("--static: the capture has {} frame{}; a pixel's temporal spread needs at least {}",
+                                 frames, frames == 1 ? "" : "s", kMinFrames));
+  }
+  const PacketFormat packets(format);
+  const bool has_reflectivity = packets.has_channel(ChannelField::kReflectivity);
+  std::vector<Series> series(static_cast<size_t>(width * height));
+  for (const BatchedFrame& frame : capture.frames) {
+    const Scan& scan = frame.scan;
+    for (int m = 0; m < width; ++m) {
+      for (int r = 0; r < height; ++r) {
+        const uint32_t mm = scan.at(ChannelField::kRange, m, r);
+        if (mm == 0) continue;
+        Series& s = series[static_cast<size_t>(m * height + r)];
+        const double range = mm * 0.001;
+        ++s.returns;
+        s.sum += range;
+        s.sum2 += range * range;
+        if (has_reflectivity) s.reflectivity += scan.at(ChannelField::kReflectivity, m, r);
+      }
+    }
+  }
+  const auto min_returns = static_cast<size_t>(std::ceil(setup.min_return_fraction * static_cast<double>(frames)));
+  ColumnContext context;
+  context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
+  context.max_wire_range_m = static_cast<float>(packets.channel_max(ChannelField::kRange) / 1000.0);
+  const double reach = std::min(setup.max_range_m + 1.0, static_cast<double>(context.max_wire_range_m));
+
+  // The ideal return each kept pixel stands for. Pixels within 4 sigma of a range limit are left
+  // out: the limit cuts their returns, so the temporal mean of what came back is biased, and so
+  // would be everything predicted from it.
+  const auto ideal_of = [&](const Series& s) {
+    const auto n = static_cast<double>(s.returns);
+    IdealReturn ideal;
+    ideal.range_m = static_cast<float>(s.sum / n);
+    ideal.cos_incidence = 1.0f;  // unknown without a scene
+    // REFLECTIVITY's calibrated byte is percent for Lambertian targets (lidar-physics.md 2.1).
+    ideal.reflectivity =
+        has_reflectivity ? static_cast<float>(std::clamp(s.reflectivity / n / 100.0, 0.01, 1.0)) : 0.5f;
+    return ideal;
+  };
+  std::vector<uint8_t> keep(series.size(), 0);
+  size_t kept = 0, near_limits = 0;
+  for (size_t i = 0; i < series.size(); ++i) {
+    if (series[i].returns < std::max<size_t>(min_returns, 2)) continue;
+    const IdealReturn ideal = ideal_of(series[i]);
+    const RangeModel model =
+        range_model(setup.chain.predict(ideal, context), ideal.range_m, context.range_step_m, reach);
+    if (model.sigma_m <= 0.0) {
+      throw InputError(
+          "--profile: its effect chain predicts no range spread (variance 0), so static mode has "
+          "nothing to compare the measured spread with");
+    }
+    const double margin = 4.0 * model.sigma_m;
+    const auto range = static_cast<double>(ideal.range_m);
+    if (range - model.window_min_m < margin || model.window_max_m - range < margin) {
+      ++near_limits;
+      continue;
+    }
+    keep[i] = 1;
+    ++kept;
+  }
+  if (kept == 0) {
+    throw InputError(
+        fmt::format("--static: no pixel returned in at least {} of the {} frames away from the profile's "
+                    "range limits ({} pixels lie within 4 sigma of them)",
+                    min_returns, frames, near_limits));
+  }
+  PixelTable t;
+  t.resize(kept * frames);
+  size_t p = 0;
+  for (size_t f = 0; f < frames; ++f) {
+    const Scan& scan = capture.frames[f].scan;
+    for (int m = 0; m < width; ++m) {
+      for (int r = 0; r < height; ++r) {
+        const auto index = static_cast<size_t>(m * height + r);
+        if (!keep[index]) continue;
+        const Series& s = series[index];
+        const auto n = static_cast<double>(s.returns);
+        const IdealReturn ideal = ideal_of(s);
+        ColumnContext column_context = context;
+        column_context.frame = f;
+        column_context.column = static_cast<uint32_t>(m);
+        const Prediction prediction = setup.chain.predict(ideal, column_context);
+        const RangeModel model = range_model(prediction, ideal.range_m, context.range_step_m, reach);
+        t.frame[p] = static_cast<uint32_t>(f);
+        t.beam[p] = static_cast<uint16_t>(r);
+        t.column[p] = static_cast<uint16_t>(m);
+        t.time_s[p] = static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9;
+        t.range_m[p] = static_cast<float>(scan.at(ChannelField::kRange, m, r) * 0.001);
+        t.signal[p] = scan.has(ChannelField::kSignal) ? static_cast<float>(scan.at(ChannelField::kSignal, m, r)) : 0.0f;
+        t.reflectivity[p] = has_reflectivity ? static_cast<float>(scan.at(ChannelField::kReflectivity, m, r)) : 0.0f;
+        t.near_ir[p] =
+            scan.has(ChannelField::kNearIr) ? static_cast<float>(scan.at(ChannelField::kNearIr, m, r)) : 0.0f;
+        t.ideal_range_m[p] = ideal.range_m;
+        t.material_reflectivity[p] = ideal.reflectivity;
+        t.material[p] = 0xFFFF;
+        t.azimuth_deg[p] = static_cast<float>(360.0 - 360.0 * m / width);
+        t.predicted_bias_m[p] = 0.0f;  // the mean is the data's own
+        // Residuals about a mean estimated from the same n returns spread by sqrt(1 - 1/n) less.
+        t.predicted_sigma_m[p] = static_cast<float>(model.sigma_m * std::sqrt(1.0 - 1.0 / n));
+        t.p_detect[p] = static_cast<float>(model.p_detect);
+        t.outlier_mix[p] = static_cast<float>(model.outlier_mix);
+        t.expected_signal[p] = static_cast<float>(prediction.signal_photons);
+        t.expected_near_ir[p] = static_cast<float>(prediction.near_ir_photons);
+        t.window_min_m[p] = static_cast<float>(model.window_min_m);
+        t.window_max_m[p] = static_cast<float>(model.window_max_m);
+        t.step_m[p] = static_cast<float>(model.step_m);
+        ++p;
+      }
+    }
+  }
+  return t;
+}
+
+}  // namespace lidartwin

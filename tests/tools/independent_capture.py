@@ -1,0 +1,360 @@
+#!/usr/bin/env python3
+"""Independent test-data generator for lidartwin: a synthetic Ouster OS-1-64 capture of a closed room.
+
+This file is written ONLY from docs/ouster-protocol.md (the copy in /work/shared/docs) and from the
+task brief, without looking at lidartwin's own sources, so that a mistake shared by lidartwin's
+packet writer and reader cannot hide. Sections of the doc it relies on:
+  3.1 / 3.5  nested FW 3.x metadata (all 7 required sections + imu_data_format)
+  3.4        pixel_shift_by_row = round(beam_azimuth_angle * W / 360)
+  4.1        packet sizes (32 B header, 12 B column header, 12 B/pixel, 32 B footer -> 12544 B)
+  4.3-4.6    STANDARD packet header, column header, footer with CRC-64/XZ, RNG19_RFL8_SIG16_NIR16 pixels
+  6.1 / 6.2  1024x10 timing, frame_id / measurement_id / init_id rules
+  7.1 / 7.2  the SDK's XYZ projection and its exact inverse (range = distance along the ray)
+  9          classic libpcap captures with one Ethernet/IPv4/UDP record per lidar packet
+
+Files written to OUT_DIR:
+  scene.gltf     glTF 2.0 box room (buffer embedded as a base64 data URI), material extras
+                 {"reflectivity": 0.5}. World (Z up) box x[-10,12] y[-7,6] z[-1.5,4.5] m;
+                 world = M * gltf with M = [[1,0,0],[0,0,-1],[0,1,0]].
+  pose.tum       "0 0 0 0 0 0 0 1": the sensor frame equals the world frame.
+  metadata.json  OS-1-64, 1024x10, RNG19_RFL8_SIG16_NIR16, 16 columns per packet.
+  capture.pcap   --frames frames x 64 lidar packets of 12544 B, 192.168.1.10:7502 -> 192.168.1.100:7502,
+                 unfragmented (jumbo) IPv4.
+
+Range model: for beam (row r, measurement id m) the ray of section 7.1 (origin O_s, unit direction D_s in
+the sensor frame, mm) is intersected analytically with the box; the distance s along D_s is the
+noise-free range. Gaussian noise with sigma = sigma0 + slope * s[m] (metres) is added, then the value
+is rounded to whole mm. Reflectivity 50, signal round(2e5 / R_m^2), near-IR 20 for every pixel.
+
+Run (numpy is needed; use the system interpreter):
+  /usr/bin/python3 tests/tools/independent_capture.py OUT_DIR [--frames N] [--seed S]
+                   [--sigma0 0.01] [--slope 0.0014]
+Use --sigma0 0 --slope 0 for noise-free ranges (each decoded point then lies within 0.5 mm of a wall).
+"""
+
+import argparse
+import base64
+import json
+import os
+import struct
+
+import numpy as np
+
+# ---------------------------------------------------------------- scene and sensor constants
+BOX_MIN_M = np.array([-10.0, -7.0, -1.5])   # world frame, Z up, metres
+BOX_MAX_M = np.array([12.0, 6.0, 4.5])
+GLTF_TO_WORLD = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float)
+
+W, H, FPS, CPP = 1024, 64, 10, 16           # lidar_mode 1024x10, 64 beams, columns_per_packet
+PIXEL_BYTES = 12                             # RNG19_RFL8_SIG16_NIR16 (4.1)
+COLUMN_BYTES = 12 + H * PIXEL_BYTES          # column header + pixels (4.1, 4.4)
+PACKET_BYTES = 32 + CPP * COLUMN_BYTES + 32  # header + columns + footer = 12544 (4.1 table)
+PROD_SN = "992211000123"
+INIT_ID = 5431201
+BEAM_ORIGIN_MM = 15.806                      # OS-1 lidar_origin_to_beam_origin_mm (3.1)
+LIDAR_TO_SENSOR = [-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 36.18, 0, 0, 0, 1]   # 3.5 / 7.3
+T0_NS, FRAME_NS = 1_000_000_000, 100_000_000
+
+SRC_IP, DST_IP, LIDAR_PORT, IMU_PORT = "192.168.1.10", "192.168.1.100", 7502, 7503
+SRC_MAC = bytes.fromhex("bc0fa7000123")      # made-up sensor MAC
+DST_MAC = bytes.fromhex("020000000064")      # made-up host MAC (locally administered)
+
+
+# ---------------------------------------------------------------- CRC-64/XZ (4.5)
+def _crc64_table():
+    poly = 0xC96C5795D7870F42                # reflected ECMA-182 polynomial
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ poly if crc & 1 else crc >> 1
+        table.append(crc)
+    return table
+
+
+_CRC64_TABLE = _crc64_table()
+
+
+def crc64_xz(data):
+    """CRC-64/XZ: reflected, init all ones, final XOR all ones."""
+    crc = 0xFFFFFFFFFFFFFFFF
+    table = _CRC64_TABLE
+    for b in data:
+        crc = table[(crc ^ b) & 0xFF] ^ (crc >> 8)
+    return crc ^ 0xFFFFFFFFFFFFFFFF
+
+
+assert crc64_xz(b"123456789") == 0x995DC9BBDF1939FA, "CRC-64/XZ self-check failed"
+
+
+# ---------------------------------------------------------------- metadata (3.1, 3.4, 3.5)
+def beam_angles():
+    """Plausible OS-1-64 intrinsics: altitudes +16.6..-16.6 deg (row 0 highest, 7.2), azimuths in the
+    repeating +4.2/+1.4/-1.4/-4.2 deg pattern with a small deterministic per-row variation."""
+    rows = np.arange(H)
+    alt = np.linspace(16.6, -16.6, H) + 0.012 * np.sin(rows * 0.7)
+    az = np.array([4.2, 1.4, -1.4, -4.2])[rows % 4] + 0.03 * np.cos(rows * 0.37)
+    return np.round(alt, 3), np.round(az, 3)
+
+
+def beam_to_lidar_transform():
+    """Identity with [0][3] = lidar_origin_to_beam_origin_mm (3.1 default, 7.2 consistency rule)."""
+    return [1, 0, 0, BEAM_ORIGIN_MM, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+
+
+def make_metadata():
+    alt, az = beam_angles()
+    shift = [int(round(a * W / 360.0)) for a in az]          # 3.4, FW 3.x convention
+    profile = "RNG19_RFL8_SIG16_NIR16"
+    return {
+        "sensor_info": {
+            "build_date": "2024-04-26T02:34:31Z", "build_rev": "v3.1.0",
+            "image_rev": "ousteros-image-prod-bootes-v3.1.0+20240426041747",
+            "initialization_id": INIT_ID, "prod_line": "OS-1-64", "prod_pn": "840-102145-D",
+            "prod_sn": PROD_SN, "status": "RUNNING"},
+        "beam_intrinsics": {
+            "beam_altitude_angles": [float(a) for a in alt],
+            "beam_azimuth_angles": [float(a) for a in az],
+            "beam_to_lidar_transform": beam_to_lidar_transform(),
+            "lidar_origin_to_beam_origin_mm": BEAM_ORIGIN_MM},
+        "imu_intrinsics": {"imu_to_sensor_transform":
+                           [1, 0, 0, 6.253, 0, 1, 0, -11.775, 0, 0, 1, 7.645, 0, 0, 0, 1]},
+        "lidar_intrinsics": {"lidar_to_sensor_transform": LIDAR_TO_SENSOR},
+        "lidar_data_format": {
+            "column_window": [0, W - 1], "columns_per_frame": W, "columns_per_packet": CPP,
+            "fps": FPS, "pixel_shift_by_row": shift, "pixels_per_column": H,
+            "udp_profile_imu": "LEGACY", "udp_profile_lidar": profile},
+        "imu_data_format": {"accel_fsr": "NORMAL", "gyro_fsr": "NORMAL"},
+        "calibration_status": {"reflectivity": {"timestamp": "2024-01-01T00:00:00", "valid": True}},
+        "config_params": {
+            "azimuth_window": [0, 360000], "columns_per_packet": CPP, "lidar_mode": f"{W}x{FPS}",
+            "multipurpose_io_mode": "OFF", "operating_mode": "NORMAL", "signal_multiplier": 1,
+            "timestamp_mode": "TIME_FROM_INTERNAL_OSC", "udp_dest": DST_IP,
+            "udp_port_imu": IMU_PORT, "udp_port_lidar": LIDAR_PORT, "udp_profile_imu": "LEGACY",
+            "udp_profile_lidar": profile},
+    }
+
+
+# ---------------------------------------------------------------- scene.gltf and pose.tum
+def box_triangles_gltf():
+    """8 corners of the box in glTF coordinates (gltf = M^T * world) and 12 inward-facing triangles."""
+    lo_g = GLTF_TO_WORLD.T @ BOX_MIN_M
+    hi_g = GLTF_TO_WORLD.T @ BOX_MAX_M
+    lo, hi = np.minimum(lo_g, hi_g), np.maximum(lo_g, hi_g)
+    corners = np.array([[(hi if (i >> k) & 1 else lo)[k] for k in range(3)] for i in range(8)])
+    centre = (lo + hi) / 2
+    faces = [(0, 2, 6, 4), (1, 3, 7, 5), (0, 1, 5, 4), (2, 3, 7, 6), (0, 1, 3, 2), (4, 5, 7, 6)]
+    tris = []
+    for a, b, c, d in faces:
+        for tri in ((a, b, c), (a, c, d)):
+            p0, p1, p2 = corners[list(tri)]
+            normal = np.cross(p1 - p0, p2 - p0)
+            if np.dot(normal, centre - p0) < 0:          # make the face look into the room
+                tri = (tri[0], tri[2], tri[1])
+            tris.append(tri)
+    return corners.astype(np.float32), np.array(tris, dtype=np.uint16)
+
+
+def write_gltf(path):
+    verts, tris = box_triangles_gltf()
+    vbytes, ibytes = verts.tobytes(), tris.tobytes()
+    blob = vbytes + ibytes                               # 96 B of positions is 4-byte aligned
+    doc = {
+        "asset": {"version": "2.0", "generator": "lidartwin independent_capture.py"},
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "room", "mesh": 0}],
+        "meshes": [{"name": "room", "primitives": [
+            {"attributes": {"POSITION": 0}, "indices": 1, "material": 0, "mode": 4}]}],
+        "materials": [{"name": "wall", "doubleSided": True,
+                       "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0],
+                                                "metallicFactor": 0.0, "roughnessFactor": 1.0},
+                       "extras": {"reflectivity": 0.5}}],
+        "buffers": [{"byteLength": len(blob), "uri": "data:application/octet-stream;base64,"
+                     + base64.b64encode(blob).decode("ascii")}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": len(vbytes), "target": 34962},
+            {"buffer": 0, "byteOffset": len(vbytes), "byteLength": len(ibytes), "target": 34963}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(verts), "type": "VEC3",
+             "min": verts.min(axis=0).tolist(), "max": verts.max(axis=0).tolist()},
+            {"bufferView": 1, "componentType": 5123, "count": tris.size, "type": "SCALAR"}],
+    }
+    with open(path, "w") as f:
+        json.dump(doc, f, indent=1)
+
+
+def write_pose(path):
+    with open(path, "w") as f:
+        f.write("0 0 0 0 0 0 0 1\n")
+
+
+# ---------------------------------------------------------------- geometry (7.1, 7.2)
+def beam_rays(meta):
+    """Section 7.1 for every (row r, measurement id m): ray origin O_s (mm) and unit direction D_s in
+    the sensor frame, arrays of shape (H, W, 3). The SDK's point is p_mm = range_mm * D_s + O_s."""
+    bi = meta["beam_intrinsics"]
+    B = np.array(bi["beam_to_lidar_transform"], dtype=float).reshape(4, 4)
+    T = np.array(meta["lidar_intrinsics"]["lidar_to_sensor_transform"], dtype=float).reshape(4, 4)
+    az = np.radians(np.array(bi["beam_azimuth_angles"]))[:, None]
+    alt = np.radians(np.array(bi["beam_altitude_angles"]))[:, None]
+    m = np.arange(W)[None, :]
+    theta_e = 2 * np.pi - m * 2 * np.pi / W
+    theta_a = -az
+    n = B[0, 3] if B[2, 3] == 0 else np.hypot(B[0, 3], B[2, 3])
+    d = np.stack(np.broadcast_arrays(np.cos(theta_e + theta_a) * np.cos(alt),
+                                     np.sin(theta_e + theta_a) * np.cos(alt),
+                                     np.sin(alt)), axis=-1)
+    o = np.stack(np.broadcast_arrays(B[0, 3] * np.cos(theta_e) - n * d[..., 0],
+                                     B[0, 3] * np.sin(theta_e) - n * d[..., 1],
+                                     B[2, 3] - n * d[..., 2]), axis=-1)
+    R, t = T[:3, :3], T[:3, 3]
+    return o @ R.T + t, d @ R.T
+
+
+def box_exit_distance(origin, direction, lo, hi):
+    """Distance along unit `direction` from `origin` (inside the box) to the first wall (slab method)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = np.where(direction > 0, hi, lo)
+        t = np.where(direction != 0, (bound - origin) / direction, np.inf)
+    return t.min(axis=-1)
+
+
+def true_ranges_mm(meta):
+    """Noise-free range (mm, float) per (row, measurement id); the sensor frame equals the world frame."""
+    origin, direction = beam_rays(meta)
+    return box_exit_distance(origin, direction, BOX_MIN_M * 1000.0, BOX_MAX_M * 1000.0)
+
+
+def measured_ranges_mm(true_mm, rng, sigma0, slope):
+    """Add N(0, sigma0 + slope * R_m) metres of noise, round to whole mm, clip to the 19-bit field."""
+    sigma_mm = 1000.0 * (sigma0 + slope * true_mm / 1000.0)
+    noisy = true_mm + rng.standard_normal(true_mm.shape) * sigma_mm
+    return np.clip(np.rint(noisy), 1, 0x7FFFF).astype(np.uint32)
+
+
+# ---------------------------------------------------------------- lidar packets (4.3 - 4.6)
+PIXEL_DTYPE = np.dtype([("range", "<u4"), ("refl", "u1"), ("pad0", "u1"), ("signal", "<u2"),
+                        ("nir", "<u2"), ("pad1", "u1"), ("window", "u1")])
+assert PIXEL_DTYPE.itemsize == PIXEL_BYTES
+
+
+def column_timestamp_ns(frame, mid):
+    return T0_NS + frame * FRAME_NS + mid * FRAME_NS // W
+
+
+def packet_header(frame_id):
+    """STANDARD 32-byte header: packet_type 1, frame_id, init_id (24 b) and prod_sn (40 b), rest 0."""
+    ids = (INIT_ID & 0xFFFFFF) | (int(PROD_SN) << 24)
+    return struct.pack("<HHQ", 1, frame_id & 0xFFFF, ids) + bytes(20)
+
+
+def column_block(ts_ns, mid, ranges_mm, signal):
+    """12-byte column header (timestamp, measurement_id, status bit0 = valid) + H pixels, row 0 first."""
+    px = np.zeros(H, dtype=PIXEL_DTYPE)
+    px["range"] = ranges_mm & 0x7FFFF                      # bits 0-18; FLAGS bits 19-23 stay 0
+    px["refl"] = 50
+    px["signal"] = signal
+    px["nir"] = 20
+    return struct.pack("<QHH", ts_ns, mid, 0x0001) + px.tobytes()
+
+
+def lidar_packet(frame, first_mid, ranges_mm, signal):
+    """One 12544-byte lidar packet: columns first_mid .. first_mid+15 of `ranges_mm` (H, W)."""
+    parts = [packet_header(frame)]
+    for mid in range(first_mid, first_mid + CPP):
+        parts.append(column_block(column_timestamp_ns(frame, mid), mid,
+                                  ranges_mm[:, mid], signal[:, mid]))
+    body = b"".join(parts) + bytes(24)                      # footer: 24 reserved bytes + CRC
+    packet = body + struct.pack("<Q", crc64_xz(body))
+    assert len(packet) == PACKET_BYTES
+    return packet
+
+
+def signal_counts(true_mm):
+    r_m = true_mm / 1000.0
+    return np.clip(np.rint(2e5 / r_m ** 2), 1, 65535).astype(np.uint16)
+
+
+# ---------------------------------------------------------------- Ethernet / IPv4 / UDP / pcap
+def ones_complement_sum(data):
+    if len(data) % 2:
+        data += b"\0"
+    total = int(np.frombuffer(data, dtype=">u2").astype(np.uint64).sum())
+    while total >> 16:
+        total = (total & 0xFFFF) + (total >> 16)
+    return total
+
+
+def ip_bytes(dotted):
+    return bytes(int(x) for x in dotted.split("."))
+
+
+def udp_frame(payload, ident):
+    """Ethernet II + IPv4 (DF set, no fragmentation, correct checksum) + UDP (correct checksum)."""
+    src, dst = ip_bytes(SRC_IP), ip_bytes(DST_IP)
+    udp_len = 8 + len(payload)
+    pseudo = src + dst + struct.pack("!BBH", 0, 17, udp_len)
+    udp_nock = struct.pack("!HHHH", LIDAR_PORT, LIDAR_PORT, udp_len, 0)
+    udp_ck = 0xFFFF - ones_complement_sum(pseudo + udp_nock + payload)
+    udp = struct.pack("!HHHH", LIDAR_PORT, LIDAR_PORT, udp_len, udp_ck or 0xFFFF)
+    ip_nock = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + udp_len, ident & 0xFFFF, 0x4000,
+                          64, 17, 0, src, dst)
+    ip_ck = 0xFFFF - ones_complement_sum(ip_nock)
+    ip = ip_nock[:10] + struct.pack("!H", ip_ck) + ip_nock[12:]
+    return DST_MAC + SRC_MAC + b"\x08\x00" + ip + udp + payload
+
+
+def pcap_global_header():
+    # magic 0xa1b2c3d4 (microseconds), v2.4, thiszone 0, sigfigs 0, snaplen 262144, linktype 1
+    return struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 262144, 1)
+
+
+def pcap_record(ts_ns, frame_bytes):
+    sec, usec = ts_ns // 1_000_000_000, (ts_ns % 1_000_000_000) // 1000
+    return struct.pack("<IIII", sec, usec, len(frame_bytes), len(frame_bytes)) + frame_bytes
+
+
+def write_pcap(path, meta, frames, rng, sigma0, slope):
+    true_mm = true_ranges_mm(meta)
+    signal = signal_counts(true_mm)
+    ident = 0
+    with open(path, "wb") as f:
+        f.write(pcap_global_header())
+        for frame in range(frames):
+            ranges = measured_ranges_mm(true_mm, rng, sigma0, slope)   # one (H, W) draw per frame
+            for first_mid in range(0, W, CPP):
+                packet = lidar_packet(frame, first_mid, ranges, signal)
+                f.write(pcap_record(column_timestamp_ns(frame, first_mid), udp_frame(packet, ident)))
+                ident += 1
+    return ident
+
+
+# ---------------------------------------------------------------- main
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("out_dir")
+    p.add_argument("--frames", type=int, default=10)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--sigma0", type=float, default=0.010, help="range noise at 0 m, metres")
+    p.add_argument("--slope", type=float, default=0.0014, help="range noise growth, metres per metre")
+    return p.parse_args()
+
+
+def main():
+    args = parse_args()
+    os.makedirs(args.out_dir, exist_ok=True)
+    meta = make_metadata()
+    write_gltf(os.path.join(args.out_dir, "scene.gltf"))
+    write_pose(os.path.join(args.out_dir, "pose.tum"))
+    with open(os.path.join(args.out_dir, "metadata.json"), "w") as f:
+        json.dump(meta, f, indent=1)
+    rng = np.random.default_rng(args.seed)
+    n = write_pcap(os.path.join(args.out_dir, "capture.pcap"), meta, args.frames, rng,
+                   args.sigma0, args.slope)
+    print("scene: scene.gltf")
+    print(f"wrote scene.gltf, pose.tum, metadata.json, capture.pcap ({n} lidar packets of "
+          f"{PACKET_BYTES} B, {args.frames} frames) to {args.out_dir}")
+
+
+if __name__ == "__main__":
+    main()
