@@ -226,3 +226,43 @@ TEST_F(Compare, AProfileWithoutRangeNoiseCannotBeScoredAndSaysWhy) {
 }
 
 }  // namespace
+
+namespace {
+
+// A capture lidartwin did not write: tests/tools/independent_capture.py makes one from the protocol
+// doc alone (its own packet writer, CRC, XYZ inverse, glTF room and unfragmented jumbo frames), with
+// the paper's linear noise law. If lidartwin's reader, beam geometry or scene conventions shared a
+// mistake with its writer, the self-consistency tests above could not see it; this one would.
+TEST(CompareIndependentCapture, ThePapersProfileFitsACaptureWrittenFromTheProtocolDocAlone) {
+  const fs::path dir = fs::path(testing::TempDir()) / ("independent_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
+                         " --frames 10 --seed 1 > /dev/null")
+                            .c_str()),
+            0);
+  const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
+                             (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
+                             " --pose " + (dir / "pose.tum").string() + " --no-plots";
+  const CliRun paper = lidartwin("compare" + inputs + " --profile os1-32-paper --out " + (dir / "paper").string());
+  ASSERT_EQ(paper.code, 0) << paper.err;
+  const nlohmann::json fit = read_json(dir / "paper" / "report.json");
+  const auto& s = fit["summary"];
+  EXPECT_EQ(s["pixels"], 10 * 1024 * 64);
+  EXPECT_EQ(s["returns"], 10 * 1024 * 64);
+  EXPECT_EQ(s["unexpected_returns"], 0);
+  EXPECT_TRUE(fit["failing"].empty()) << fit["failing"][0]["sentence"];
+  EXPECT_NEAR(s["nll_per_pixel"].get<double>(), s["nll_expected"].get<double>(), 4 * s["nll_se"].get<double>());
+  EXPECT_NEAR(s["z"]["mean"].get<double>(), 0.0, 0.01);
+  EXPECT_NEAR(s["z"]["std"].get<double>(), 1.0, 0.01);
+
+  // The datasheet's 10 mm to 20 m is far tighter than 10 mm + 1.4 mm/m: spread fails, upwards.
+  const CliRun datasheet = lidartwin("compare" + inputs + " --profile os1-64 --out " + (dir / "datasheet").string());
+  ASSERT_EQ(datasheet.code, 0) << datasheet.err;
+  const nlohmann::json misfit = read_json(dir / "datasheet" / "report.json");
+  ASSERT_FALSE(misfit["failing"].empty());
+  EXPECT_EQ(misfit["failing"][0]["quantity"], "spread");
+  EXPECT_GT(misfit["failing"][0]["measured"].get<double>(), misfit["failing"][0]["predicted"].get<double>());
+  fs::remove_all(dir);
+}
+
+}  // namespace
