@@ -1,8 +1,8 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Independent test-data generator for lidartwin: a synthetic Ouster OS-1-64 capture of a closed room.
 
-This file is written ONLY from docs/ouster-protocol.md (the copy in /work/shared/docs) and from the
-task brief, without looking at lidartwin's own sources, so that a mistake shared by lidartwin's
+This file is written ONLY from the Ouster protocol reference (ouster-protocol.md) and from the
+test plan, without looking at lidartwin's own sources, so that a mistake shared by lidartwin's
 packet writer and reader cannot hide. Sections of the doc it relies on:
   3.1 / 3.5  nested FW 3.x metadata (all 7 required sections + imu_data_format)
   3.4        pixel_shift_by_row = round(beam_azimuth_angle * W / 360)
