@@ -113,6 +113,51 @@ TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
             std::to_string(20 * 1024 * 64) + " " + std::to_string(s["returns"].get<size_t>()) + " 32\n");
 }
 
+// report.html as a user opens it: Debian's Chromium, headless (tools/test installs it). Every
+// embedded plot decodes, the page logs no script error, and the screenshot is not a blank page.
+TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
+  const fs::path dir = out("html");
+  const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall +
+                             " --profile os1-32-paper --out " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  ASSERT_TRUE(fs::exists(dir / "report.html")) << r.out;
+  const std::string browser =
+      "timeout 180 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1200,2400 "
+      "--virtual-time-budget=10000 --enable-logging=stderr --v=0 ";
+  const std::string page = "file://" + (dir / "report.html").string();
+  ASSERT_EQ(std::system((browser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" +
+                         (dir / "browser.log").string())
+                            .c_str()),
+            0)
+      << slurp(dir / "browser.log");
+  const std::string dom = slurp(dir / "dom.html");
+  const auto attribute = [&](const std::string& name) {
+    const size_t at = dom.find(name + "=\"");
+    return at == std::string::npos ? -1 : std::stoi(dom.substr(at + name.size() + 2));
+  };
+  EXPECT_GE(attribute("data-plots-total"), 8) << dom.substr(0, 300);
+  EXPECT_EQ(attribute("data-plots-rendered"), attribute("data-plots-total"));
+  const std::string log = slurp(dir / "browser.log");
+  // Chromium logs every console message, errors and uncaught exceptions included, as
+  // "INFO:CONSOLE..."; the page writes none of its own.
+  EXPECT_EQ(log.find(":CONSOLE"), std::string::npos) << log;
+
+  const fs::path shot = dir / "shot.png";
+  ASSERT_EQ(std::system((browser + "--screenshot=" + shot.string() + " " + page + " >/dev/null 2>&1").c_str()), 0);
+  // Colours and ink of the screenshot, read by matplotlib: a blank or broken page has neither.
+  const std::string measure = "/usr/bin/python3 -c \"import matplotlib.image as m, numpy as np; i = m.imread('" +
+                              shot.string() +
+                              "')[..., :3]; print(len(np.unique((i * 255).astype(int).reshape(-1, 3), axis=0)), "
+                              "float((i.mean(axis=2) < 0.9).mean()))\"";
+  FILE* pipe = popen(measure.c_str(), "r");
+  int colours = 0;
+  double ink = 0.0;
+  ASSERT_EQ(fscanf(pipe, "%d %lf", &colours, &ink), 2);
+  pclose(pipe);
+  EXPECT_GT(colours, 200);
+  EXPECT_GT(ink, 0.03);
+}
+
 TEST_F(Compare, ThePapersLinearLawFailsTheDatasheetCaptureInTheRangeBandsWhereTheyDiffer) {
   const fs::path dir = out("paper");
   const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall +

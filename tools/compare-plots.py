@@ -165,7 +165,15 @@ table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;font-
 <tr><td>detection</td><td>%.2f %% measured, %.2f %% predicted</td></tr>
 <tr><td>range z</td><td>mean %+.3f, std %.3f</td></tr>
 <tr><td>failing regions</td><td>%d (alpha %g, %d tests, Bonferroni)</td></tr>
-</table>%s</body></html>
+</table>%s
+<script>
+// How many plots the browser decoded: tests/cli_compare_test.cpp reads these from the DOM.
+window.addEventListener("load", () => {
+  const images = Array.from(document.images);
+  document.body.dataset.plotsTotal = images.length;
+  document.body.dataset.plotsRendered = images.filter((i) => i.complete && i.naturalWidth > 0).length;
+});
+</script></body></html>
 """ % (html.escape(str(inputs.get("capture", ""))), html.escape(str(inputs.get("capture", "the capture"))),
        html.escape(str(inputs.get("profile", "?"))), s["frames"], s["pixels"], s["returns"], s["nll_per_pixel"],
        s["nll_expected"], s["nll_se"], excess, 100 * s["detection"]["measured"], 100 * s["detection"]["predicted"],
