@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <unistd.h>
@@ -19,6 +20,7 @@
 #include "lidartwin/analysis/measured_capture.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/analysis/pose_refinement.h"
 #include "lidartwin/analysis/static_table.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/worker_pool.h"
@@ -46,6 +48,7 @@ struct CompareFlags {
   size_t show = 10;
   bool plots = true;
   bool static_mode = false;
+  bool refine_pose = false;
 };
 
 // A `record` output directory stands for its capture, metadata and ground-truth poses.
@@ -128,24 +131,52 @@ void write_json(const fs::path& path, const nlohmann::json& json) {
   if (!out) throw InputError(path.string() + ": write failed");
 }
 
-// The capture beside the scene: its beams cast at each column's time and pose.
-PixelTable scene_table(const CompareFlags& flags, const Inputs& in, const MeasuredCapture& capture,
-                       const EffectChain& chain, const SensorProfile& profile, Steps& steps) {
-  const std::unique_ptr<PoseSource> poses = load_measured_poses(in.pose);
+// The capture beside the scene: its beams cast at each column's time and pose (corrected first,
+// with --refine-pose).
+struct SceneComparison {
+  PixelTable table;
+  std::optional<PoseRefinement> refinement;
+};
+SceneComparison scene_table(const CompareFlags& flags, const Inputs& in, const MeasuredCapture& capture,
+                            const EffectChain& chain, const SensorProfile& profile, Steps& steps) {
+  const std::unique_ptr<PoseSource> measured = load_measured_poses(in.pose);
   steps.start("loading the scene");
   const Scene scene = Scene::load(flags.scene);
   steps.done();
+  SceneComparison out;
+  std::unique_ptr<PoseSource> corrected;
+  if (flags.refine_pose) {
+    steps.start("registering the measured points to the scene");
+    RefineOptions options;
+    options.max_range_m = profile.max_range_m;
+    out.refinement = refine_pose(capture, scene, *measured, flags.time_offset_s, options);
+    corrected = std::make_unique<CorrectedPoses>(*measured, out.refinement->correction);
+    steps.done();
+  }
+  const PoseSource& poses = corrected ? *corrected : *measured;
   steps.start("casting the capture's beams and predicting every pixel");
   WorkerPool pool(flags.threads);
-  PixelTable table = build_pixel_table({capture, scene, *poses, flags.time_offset_s, chain, profile.max_range_m}, pool);
+  out.table = build_pixel_table({capture, scene, poses, flags.time_offset_s, chain, profile.max_range_m}, pool);
   steps.done();
-  if (std::ranges::none_of(table.ideal_range_m, [](float r) { return r > 0.0f; })) {
+  if (std::ranges::none_of(out.table.ideal_range_m, [](float r) { return r > 0.0f; })) {
     throw InputError(
         fmt::format("--scene {} with --pose {}: no beam of the capture meets a surface of the scene (is "
                     "the pose in the scene's world frame, Z up, and inside its bounds?)",
                     flags.scene, in.pose.string()));
   }
-  return table;
+  return out;
+}
+
+nlohmann::json refinement_json(const PoseRefinement& r) {
+  const Eigen::Vector3d t = r.correction.translation;
+  const Eigen::Quaterniond q = r.correction.rotation;
+  return {{"correction", {{"translation_m", {t.x(), t.y(), t.z()}}, {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
+          {"sensor_shift_m", {r.sensor_shift_m.x(), r.sensor_shift_m.y(), r.sensor_shift_m.z()}},
+          {"rotation_deg", r.rotation_deg},
+          {"rms_before_m", r.rms_before_m},
+          {"rms_after_m", r.rms_after_m},
+          {"points", r.points},
+          {"iterations", r.iterations}};
 }
 
 int run_compare(const CompareFlags& flags) {
@@ -156,8 +187,13 @@ int run_compare(const CompareFlags& flags) {
   steps.start("reading the capture");
   const MeasuredCapture capture = read_capture(in.capture, in.metadata, flags.frames);
   steps.done();
-  const PixelTable table = flags.static_mode ? build_static_table({capture, chain, profile.max_range_m})
-                                             : scene_table(flags, in, capture, chain, profile, steps);
+  SceneComparison compared;
+  if (flags.static_mode) {
+    compared.table = build_static_table({capture, chain, profile.max_range_m});
+  } else {
+    compared = scene_table(flags, in, capture, chain, profile, steps);
+  }
+  const PixelTable& table = compared.table;
   steps.start("scoring and binning");
   const PixelScores scores = score_pixels(table, flags.seed);
   MisfitOptions options;
@@ -167,7 +203,7 @@ int run_compare(const CompareFlags& flags) {
   steps.done();
 
   fs::create_directories(flags.out);
-  const nlohmann::json inputs = {
+  nlohmann::json inputs = {
       {"capture", in.capture.string()},
       {"metadata", in.metadata.string()},
       {"scene", flags.scene},
@@ -179,6 +215,7 @@ int run_compare(const CompareFlags& flags) {
       {"seed", flags.seed},
       {"lidar_mode", to_string(LidarMode{capture.metadata.format.columns_per_frame, capture.metadata.format.fps})},
       {"udp_profile_lidar", to_string(capture.metadata.format.udp_profile_lidar)}};
+  if (compared.refinement) inputs["pose_refinement"] = refinement_json(*compared.refinement);
   write_json(fs::path(flags.out) / "report.json", compare_report(misfit, inputs, flags.alpha));
   steps.start("writing pixels.npz");
   write_pixels_npz(fs::path(flags.out) / "pixels.npz", table, scores);
@@ -187,6 +224,14 @@ int run_compare(const CompareFlags& flags) {
   const MisfitSummary& s = misfit.summary;
   std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
               in.capture.string().c_str(), profile.name.c_str());
+  if (compared.refinement) {
+    const PoseRefinement& r = *compared.refinement;
+    std::printf(
+        "pose refined on %zu points: sensor moved by (%+.4f, %+.4f, %+.4f) m, rotated by %.4f deg; "
+        "point-to-plane RMS %.1f -> %.1f mm\n",
+        r.points, r.sensor_shift_m.x(), r.sensor_shift_m.y(), r.sensor_shift_m.z(), r.rotation_deg,
+        1000 * r.rms_before_m, 1000 * r.rms_after_m);
+  }
   std::printf("NLL per pixel %.4f, expected %.4f +- %.4f if the model were true (%+.1f standard errors)\n",
               s.nll_per_pixel, s.nll_expected, s.nll_se,
               s.nll_se > 0 ? (s.nll_per_pixel - s.nll_expected) / s.nll_se : 0.0);
@@ -234,7 +279,10 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
                 "the profile's prediction at its measured range")
       ->excludes(scene)
       ->excludes(pose)
-      ->excludes(offset);
+      ->excludes(offset)
+      ->excludes(sub->add_flag("--refine-pose", flags->refine_pose,
+                               "register the measured points to the scene (point-to-plane) and correct the poses "
+                               "before comparing; the correction is printed and in report.json"));
   sub->add_option("--frames", flags->frames, "compare at most this many frames (0 = all)")->capture_default_str();
   sub->add_option("--alpha", flags->alpha, "significance level, after correction for the number of tests")
       ->check(CLI::Range(1e-12, 0.5))
