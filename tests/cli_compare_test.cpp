@@ -2,6 +2,7 @@
 // profile that made a capture fits it (no failing region, NLL at its expectation, PIT uniform);
 // the paper's linear profile against a datasheet capture fails in the range bands where the two
 // laws differ, in the right direction; inputs that do not belong together are refused, clearly.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -247,6 +248,73 @@ TEST_F(Compare, RefinePoseUndoesAPoseErrorBeforeComparing) {
     EXPECT_TRUE(f["quantity"] == "outliers" || f["quantity"] == "detection") << f["sentence"];
   }
   EXPECT_NEAR(report["summary"]["z"]["std"].get<double>(), 1.0, 0.01);
+}
+
+// os1-64's profile with one more effect from the library, before its range limits.
+fs::path profile_with(const nlohmann::json& effect, const std::string& name) {
+  nlohmann::json profile = read_json(kSource + "/profiles/os1-64.json");
+  auto& effects = profile["effects"];
+  auto limits = std::find_if(effects.begin(), effects.end(), [](const auto& e) { return e["name"] == "range_limits"; });
+  effects.insert(limits, effect);
+  const fs::path path = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_" + name + ".json");
+  std::ofstream(path) << profile.dump();
+  return path;
+}
+
+// A capture recorded with an effect the compared profile lacks: the report shows that effect's
+// fingerprint (lidar-physics.md's diagnostic matrix).
+nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::string& name, const fs::path& out_dir) {
+  const fs::path capture = out_dir / "capture";
+  EXPECT_EQ(lidartwin("record --profile " + profile_with(effect, name).string() + " --scene " + kHall +
+                      " --trajectory " + kHallPose + " --frames 20 --seed 5 --out " + capture.string())
+                .code,
+            0);
+  const CliRun r = lidartwin("compare --capture " + capture.string() + " --scene " + kHall +
+                             " --profile os1-64 --no-plots --out " + (out_dir / "report").string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  return read_json(out_dir / "report" / "report.json");
+}
+
+// E4: the footprint's spread grows with r * tan(incidence): the spread ratio and the outlier rate
+// rise bin by bin with incidence, from about 1 at normal incidence.
+TEST_F(Compare, AHiddenIncidenceEffectShowsAsSpreadGrowingWithIncidence) {
+  const nlohmann::json report = compare_hidden_effect({{"name", "incidence"}}, "e4", out("e4"));
+  std::vector<double> ratios, outliers;
+  for (const auto& bin : report["bins"]) {
+    if (bin["features"].size() != 1 || !bin["features"].contains("incidence")) continue;
+    ratios.push_back(bin["spread_ratio"]);
+    outliers.push_back(bin["outliers"]["measured"]);
+  }
+  ASSERT_EQ(ratios.size(), 5u);  // 0-30, 30-45, 45-60, 60-75, 75-90
+  EXPECT_LT(ratios.front(), 1.1);
+  EXPECT_GT(ratios.back(), 2.0);
+  for (size_t k = 1; k < ratios.size(); ++k) {
+    EXPECT_GT(ratios[k], ratios[k - 1]) << "incidence bin " << k;
+    EXPECT_GT(outliers[k], outliers[k - 1]) << "incidence bin " << k;
+  }
+  bool spread_at_grazing = false;
+  for (const auto& f : report["failing"]) {
+    const auto& features = f["features"];
+    if (f["quantity"] == "spread" && features.contains("incidence") && features["incidence"][0].get<double>() >= 60.0) {
+      spread_at_grazing = true;
+    }
+  }
+  EXPECT_TRUE(spread_at_grazing);
+}
+
+// E10: per-beam range offsets: the worst regions are single beams, each with its own bias; the
+// next ones are beam groups (whose mixed offsets also read as spread).
+TEST_F(Compare, AHiddenPerBeamCalibrationErrorShowsAsBiasByBeam) {
+  const nlohmann::json effect = {{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}, {"unit_seed", 3}};
+  const nlohmann::json report = compare_hidden_effect(effect, "e10", out("e10"));
+  ASSERT_GE(report["failing"].size(), 10u);
+  for (size_t i = 0; i < 10; ++i) {
+    const auto& f = report["failing"][i];
+    EXPECT_TRUE(f["features"].contains("beam")) << f["sentence"];
+    if (i >= 5) continue;
+    EXPECT_EQ(f["quantity"], "bias") << f["sentence"];
+    EXPECT_EQ(f["features"].size(), 1u) << f["sentence"];
+  }
 }
 
 TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {

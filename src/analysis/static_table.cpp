@@ -74,7 +74,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
   size_t kept = 0, near_limits = 0;
   for (size_t i = 0; i < series.size(); ++i) {
     if (series[i].returns < std::max<size_t>(min_returns, 2)) continue;
-    const IdealReturn ideal = ideal_of(series[i]);
+    IdealReturn ideal = ideal_of(series[i]);
+    ideal.beam = static_cast<uint16_t>(i % static_cast<size_t>(height));
     const RangeModel model =
         range_model(setup.chain.predict(ideal, context), ideal.range_m, context.range_step_m, reach);
     if (model.sigma_m <= 0.0) {
@@ -108,7 +109,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         if (!keep[index]) continue;
         const Series& s = series[index];
         const auto n = static_cast<double>(s.returns);
-        const IdealReturn ideal = ideal_of(s);
+        IdealReturn ideal = ideal_of(s);
+        ideal.beam = static_cast<uint16_t>(r);
         ColumnContext column_context = context;
         column_context.frame = f;
         column_context.column = static_cast<uint32_t>(m);

@@ -71,12 +71,14 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
   cosine = (c < 1.0f).select(c, Lanes::Ones());
 }
 
-void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, std::span<IdealReturn> out) {
+void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, int first_row,
+               std::span<IdealReturn> out) {
   alignas(64) float cos_incidence[kLanes];
   incidence_lanes(packet, cos_incidence);
   for (size_t i = 0; i < out.size(); ++i) {
     IdealReturn& ideal = out[i];
     ideal = IdealReturn{};
+    ideal.beam = static_cast<uint16_t>(first_row + static_cast<int>(i));
     const unsigned geom_id = packet.hit.geomID[i];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
     const ColumnCaster::SurfaceOptics& material = optics[geom_id];
@@ -133,7 +135,7 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
     alignas(64) int valid[kLanes];
     fill_packet(rays[k], world, max_range_m_, packet, valid);
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    read_hits(packet, optics_.data(),
+    read_hits(packet, optics_.data(), rays[k].first_row,
               out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
   }
   mark_vertical_edges(out);

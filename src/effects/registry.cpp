@@ -26,6 +26,8 @@ Registry& registry() {
     r->factories.emplace("range_limits", make_range_limits);
     r->factories.emplace("range_quantization", make_range_quantization);
     r->factories.emplace("dropout", make_dropout);
+    r->factories.emplace("incidence", make_incidence);
+    r->factories.emplace("beam_calibration", make_beam_calibration);
     return r;
   }();
   return *instance;

@@ -36,9 +36,11 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
 
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
-            "dropout, radiometry, range_limits, range_noise_linear, range_noise_piecewise, range_quantization");
-  EXPECT_TRUE(error_of(json::array({{{"sigma0_m", 0.01}}}))
-                  .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: dropout,"));
+            "beam_calibration, dropout, incidence, radiometry, range_limits, range_noise_linear, "
+            "range_noise_piecewise, range_quantization");
+  EXPECT_TRUE(
+      error_of(json::array({{{"sigma0_m", 0.01}}}))
+          .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
   EXPECT_EQ(error_of(json::object()),
             "profiles/os1-64.json: /effects: must be an array of effects [{\"name\": ...}, ...]");
   EXPECT_EQ(error_of(json::array({{{"name", "range_limits"}, {"min_m", 5}, {"max_m", 1}}})),

@@ -11,7 +11,8 @@ struct IdealReturn {
   float specular = 0.0f;
   uint32_t material_id = 0;  // Embree geomID, for the analysis' per-material tests
   uint8_t retroreflective = 0;
-  uint8_t edge = 0;  // 1 when a neighbouring pixel's range differs by a depth step
+  uint8_t edge = 0;   // 1 when a neighbouring pixel's range differs by a depth step
+  uint16_t beam = 0;  // row of the column, for per-beam effects' predict (E10)
   bool hit() const { return range_m > 0.0f; }
 };
 

@@ -1,0 +1,71 @@
+// E4 (lidar-physics.md "Incidence-angle dependence of noise and bias"): on an oblique surface the
+// beam footprint spans a range of depths, which broadens the return pulse and, depending on how
+// the detector times it, shifts it. With the footprint's angular width gamma (beam divergence,
+// FWHM, radians) and incidence theta:
+//   variance += (r * tan(theta) * gamma / 2.355)^2      (Gaussian footprint: FWHM -> sigma)
+//   bias     += kappa * r * tan(theta) * gamma          (kappa fitted; sign detector-dependent)
+// Default divergence: 0.13 degrees, the OS1-64's (lidar-physics.md E4, from the datasheet [S1]);
+// kappa defaults to 0 (no published value for Ouster). tan(theta) is capped at 20 (87 degrees):
+// beyond it the footprint model is meaningless and the return is mostly gone anyway.
+#include <algorithm>
+#include <cmath>
+
+#include "effects/builtin_effects.h"
+#include "effects/parameters.h"
+
+namespace lidartwin::effects_detail {
+namespace {
+
+constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
+constexpr double kMaxTan = 20.0;
+
+struct IncidenceParameters {
+  double divergence_rad = 0.13 * 3.141592653589793 / 180.0;
+  double bias_factor = 0.0;
+};
+
+class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
+ public:
+  using P = IncidenceParameters;
+  static constexpr std::string_view kName = "incidence";
+  static constexpr std::array<ParameterSpec<P>, 2> kSpecs{{
+      {"divergence_rad", &P::divergence_rad, {0.0, 0.05}},
+      {"bias_factor", &P::bias_factor, {-2.0, 2.0}},
+  }};
+  using TabledEffect::TabledEffect;
+
+  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
+                MeasuredColumn& measured) const override {
+    const ColumnStreams streams = column_streams(context);
+    float* range = measured.range_m.data();
+    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
+      if (range[beam] == 0.0f) continue;
+      const double spread = footprint_m(ideal[beam]);
+      const double shift = params().bias_factor * spread;
+      range[beam] = static_cast<float>(static_cast<double>(range[beam]) + shift +
+                                       spread / kFwhmPerSigma * streams(beam).normal_ziggurat(0));
+    }
+  }
+
+  void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
+    const double spread = footprint_m(ideal);
+    prediction.bias_m += params().bias_factor * spread;
+    prediction.variance_m2 += (spread / kFwhmPerSigma) * (spread / kFwhmPerSigma);
+  }
+
+ private:
+  // r * tan(theta) * gamma: the depth the footprint spans (FWHM).
+  double footprint_m(const IdealReturn& ideal) const {
+    const double c = std::clamp(static_cast<double>(ideal.cos_incidence), 0.0, 1.0);
+    const double tan_theta = std::min(std::sqrt(std::max(1.0 - c * c, 0.0)) / std::max(c, 1e-9), kMaxTan);
+    return static_cast<double>(ideal.range_m) * tan_theta * params().divergence_rad;
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string_view source) {
+  return Incidence::create(params, source);
+}
+
+}  // namespace lidartwin::effects_detail
