@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 
 #include <fmt/format.h>
@@ -97,6 +98,20 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
                                                 std::vector<IdealReturn>(static_cast<size_t>(height)));
   constexpr int kColumnsPerItem = 16;
   const int items = static_cast<int>((observed.size() + kColumnsPerItem - 1) / kColumnsPerItem);
+  std::atomic<int> items_done{0};
+  std::atomic<int> percent_shown{0};
+  std::mutex progress_mutex;
+  const auto report_progress = [&] {
+    if (!setup.progress) return;
+    const int percent = static_cast<int>(100LL * ++items_done / std::max(items, 1));
+    int shown = percent_shown.load();
+    while (percent > shown && !percent_shown.compare_exchange_weak(shown, percent)) {
+    }
+    if (percent > shown) {
+      const std::lock_guard lock(progress_mutex);
+      setup.progress(percent / 100.0);
+    }
+  };
   pool.run(items, [&](int worker, int item) {
     std::vector<IdealReturn>& ideal = scratch[static_cast<size_t>(worker)];
     const size_t end = std::min(observed.size(), static_cast<size_t>(item + 1) * kColumnsPerItem);
@@ -147,6 +162,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
         table.step_m[p] = static_cast<float>(model.step_m);
       }
     }
+    report_progress();
   });
   if (no_spread) {
     throw InputError(

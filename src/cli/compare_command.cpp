@@ -95,6 +95,10 @@ class Steps {
     if (tty_) std::fprintf(stderr, "\r%-60s", what);
     started_ = std::chrono::steady_clock::now();
   }
+  // "\r<what> 45 %" while a long step runs.
+  void progress(const char* what, double fraction) const {
+    if (tty_) std::fprintf(stderr, "\r%-52s %3.0f %%", what, 100.0 * fraction);
+  }
   void done() const {
     if (tty_) std::fprintf(stderr, " %.1f s\n", seconds());
   }
@@ -156,7 +160,11 @@ SceneComparison scene_table(const CompareFlags& flags, const Inputs& in, const M
   const PoseSource& poses = corrected ? *corrected : *measured;
   steps.start("casting the capture's beams and predicting every pixel");
   WorkerPool pool(flags.threads);
-  out.table = build_pixel_table({capture, scene, poses, flags.time_offset_s, chain, profile.max_range_m}, pool);
+  PixelTableSetup setup{capture, scene, poses, flags.time_offset_s, chain, profile.max_range_m};
+  setup.progress = [&steps](double fraction) {
+    steps.progress("casting the capture's beams and predicting every pixel", fraction);
+  };
+  out.table = build_pixel_table(setup, pool);
   steps.done();
   if (std::ranges::none_of(out.table.ideal_range_m, [](float r) { return r > 0.0f; })) {
     throw InputError(

@@ -5,6 +5,7 @@
 // and the chain's predicted distribution. One table feeds the scoring, the bins and the fits, and
 // is written out for users' own analysis (DIR/pixels.npz).
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,8 @@ struct PixelTableSetup {
   double time_offset_s = 0.0;  // pose time = column timestamp + offset
   const EffectChain& chain;    // the profile's: only its effects are used, never its beams or modes
   double max_range_m = 100.0;  // the cast looks 1 m beyond it, as the forward model does
+  // Called with the fraction of columns done, at most 100 times, one call at a time (any thread).
+  std::function<void(double fraction)> progress = nullptr;
 };
 
 // Casts the capture's own beams (metadata) at each column's timestamp and pose. Columns whose
