@@ -55,6 +55,40 @@ void PixelTable::resize(size_t n) {
   for (auto* v : {&retro, &edge}) v->resize(n);
 }
 
+void PixelTable::set_measured(size_t i, uint32_t f, const Scan& scan, int m, int r) {
+  frame[i] = f;
+  beam[i] = static_cast<uint16_t>(r);
+  column[i] = static_cast<uint16_t>(m);
+  time_s[i] = static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9;
+  range_m[i] = channel_value(scan, ChannelField::kRange, m, r, 0.001f);
+  signal[i] = channel_value(scan, ChannelField::kSignal, m, r, 1.0f);
+  reflectivity[i] = channel_value(scan, ChannelField::kReflectivity, m, r, 1.0f);
+  near_ir[i] = channel_value(scan, ChannelField::kNearIr, m, r, 1.0f);
+  range2_m[i] = channel_value(scan, ChannelField::kRange2, m, r, 0.001f);
+  azimuth_deg[i] = static_cast<float>(360.0 - 360.0 * m / scan.width);  // encoder angle (7.1)
+}
+
+void PixelTable::set_model(size_t i, const IdealReturn& ideal, const Prediction& prediction, const RangeModel& model) {
+  ideal_range_m[i] = ideal.range_m;
+  incidence_deg[i] =
+      ideal.hit() ? static_cast<float>(std::acos(std::clamp(static_cast<double>(ideal.cos_incidence), 0.0, 1.0)) *
+                                       180.0 / std::numbers::pi)
+                  : 0.0f;
+  material_reflectivity[i] = ideal.reflectivity;
+  material[i] = static_cast<uint16_t>(ideal.hit() ? ideal.material_id : 0xFFFF);
+  retro[i] = ideal.retroreflective;
+  edge[i] = ideal.edge;
+  predicted_bias_m[i] = static_cast<float>(prediction.bias_m);
+  predicted_sigma_m[i] = static_cast<float>(model.sigma_m);
+  p_detect[i] = static_cast<float>(model.p_detect);
+  outlier_mix[i] = static_cast<float>(model.outlier_mix);
+  expected_signal[i] = static_cast<float>(prediction.signal_photons);
+  expected_near_ir[i] = static_cast<float>(prediction.near_ir_photons);
+  window_min_m[i] = static_cast<float>(model.window_min_m);
+  window_max_m[i] = static_cast<float>(model.window_max_m);
+  step_m[i] = static_cast<float>(model.step_m);
+}
+
 PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   const Metadata& metadata = setup.capture.metadata;
   const LidarDataFormat& format = metadata.format;
@@ -120,46 +154,18 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
       const Scan& scan = setup.capture.frames[oc.frame].scan;
       const int m = oc.column;
       const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
-      const double time_s = static_cast<double>(stamp) * 1e-9;
-      caster.cast(m, setup.poses.at(time_s + setup.time_offset_s), ideal);
+      caster.cast(m, setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s), ideal);
       ColumnContext column_context = context;
       column_context.frame = oc.frame;
       column_context.column = static_cast<uint32_t>(m);
-      const float azimuth = static_cast<float>(360.0 - 360.0 * m / width);
       for (int r = 0; r < height; ++r) {
         const size_t p = oc.first_pixel + static_cast<size_t>(r);
         const IdealReturn& hit = ideal[static_cast<size_t>(r)];
         const Prediction prediction = setup.chain.predict(hit, column_context);
         const RangeModel model = range_model(prediction, hit.range_m, context.range_step_m, reach);
         if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
-        table.frame[p] = oc.frame;
-        table.beam[p] = static_cast<uint16_t>(r);
-        table.column[p] = static_cast<uint16_t>(m);
-        table.time_s[p] = time_s;
-        table.range_m[p] = channel_value(scan, ChannelField::kRange, m, r, 0.001f);
-        table.signal[p] = channel_value(scan, ChannelField::kSignal, m, r, 1.0f);
-        table.reflectivity[p] = channel_value(scan, ChannelField::kReflectivity, m, r, 1.0f);
-        table.near_ir[p] = channel_value(scan, ChannelField::kNearIr, m, r, 1.0f);
-        table.range2_m[p] = channel_value(scan, ChannelField::kRange2, m, r, 0.001f);
-        table.ideal_range_m[p] = hit.range_m;
-        table.incidence_deg[p] =
-            hit.hit() ? static_cast<float>(std::acos(std::clamp(static_cast<double>(hit.cos_incidence), 0.0, 1.0)) *
-                                           180.0 / std::numbers::pi)
-                      : 0.0f;
-        table.material_reflectivity[p] = hit.reflectivity;
-        table.material[p] = static_cast<uint16_t>(hit.hit() ? hit.material_id : 0xFFFF);
-        table.retro[p] = hit.retroreflective;
-        table.edge[p] = hit.edge;
-        table.azimuth_deg[p] = azimuth;
-        table.predicted_bias_m[p] = static_cast<float>(prediction.bias_m);
-        table.predicted_sigma_m[p] = static_cast<float>(model.sigma_m);
-        table.p_detect[p] = static_cast<float>(model.p_detect);
-        table.outlier_mix[p] = static_cast<float>(model.outlier_mix);
-        table.expected_signal[p] = static_cast<float>(prediction.signal_photons);
-        table.expected_near_ir[p] = static_cast<float>(prediction.near_ir_photons);
-        table.window_min_m[p] = static_cast<float>(model.window_min_m);
-        table.window_max_m[p] = static_cast<float>(model.window_max_m);
-        table.step_m[p] = static_cast<float>(model.step_m);
+        table.set_measured(p, oc.frame, scan, m, r);
+        table.set_model(p, hit, prediction, model);
       }
     }
     report_progress();

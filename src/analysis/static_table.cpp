@@ -116,29 +116,12 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         column_context.column = static_cast<uint32_t>(m);
         const Prediction prediction = setup.chain.predict(ideal, column_context);
         const RangeModel model = range_model(prediction, ideal.range_m, context.range_step_m, reach);
-        t.frame[p] = static_cast<uint32_t>(f);
-        t.beam[p] = static_cast<uint16_t>(r);
-        t.column[p] = static_cast<uint16_t>(m);
-        t.time_s[p] = static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9;
-        t.range_m[p] = static_cast<float>(scan.at(ChannelField::kRange, m, r) * 0.001);
-        t.signal[p] = scan.has(ChannelField::kSignal) ? static_cast<float>(scan.at(ChannelField::kSignal, m, r)) : 0.0f;
-        t.reflectivity[p] = has_reflectivity ? static_cast<float>(scan.at(ChannelField::kReflectivity, m, r)) : 0.0f;
-        t.near_ir[p] =
-            scan.has(ChannelField::kNearIr) ? static_cast<float>(scan.at(ChannelField::kNearIr, m, r)) : 0.0f;
-        t.ideal_range_m[p] = ideal.range_m;
-        t.material_reflectivity[p] = ideal.reflectivity;
-        t.material[p] = 0xFFFF;
-        t.azimuth_deg[p] = static_cast<float>(360.0 - 360.0 * m / width);
+        t.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
+        t.set_model(p, ideal, prediction, model);
+        t.material[p] = 0xFFFF;        // no scene: no material, and incidence unknown (0 here, not binned)
         t.predicted_bias_m[p] = 0.0f;  // the mean is the data's own
         // Residuals about a mean estimated from the same n returns spread by sqrt(1 - 1/n) less.
         t.predicted_sigma_m[p] = static_cast<float>(model.sigma_m * std::sqrt(1.0 - 1.0 / n));
-        t.p_detect[p] = static_cast<float>(model.p_detect);
-        t.outlier_mix[p] = static_cast<float>(model.outlier_mix);
-        t.expected_signal[p] = static_cast<float>(prediction.signal_photons);
-        t.expected_near_ir[p] = static_cast<float>(prediction.near_ir_photons);
-        t.window_min_m[p] = static_cast<float>(model.window_min_m);
-        t.window_max_m[p] = static_cast<float>(model.window_max_m);
-        t.step_m[p] = static_cast<float>(model.step_m);
         ++p;
       }
     }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lidartwin/analysis/measured_capture.h"
+#include "lidartwin/analysis/pixel_likelihood.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/pose/pose_source.h"
@@ -51,6 +52,10 @@ struct PixelTable {
 
   size_t size() const { return beam.size(); }
   void resize(size_t n);
+  // Pixel i: where it is (row r of measurement id m of frame f) and what the scan measured there.
+  void set_measured(size_t i, uint32_t f, const Scan& scan, int m, int r);
+  // Pixel i: the ideal return it stands for, and the chain's prediction for it.
+  void set_model(size_t i, const IdealReturn& ideal, const Prediction& prediction, const RangeModel& model);
 };
 
 struct PixelTableSetup {
