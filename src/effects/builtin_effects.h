@@ -17,6 +17,8 @@ std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params,
 std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, std::string_view source);
 std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, std::string_view source);
 std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, std::string_view source);
+std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, std::string_view source);  // E2
+std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, std::string_view source);        // E3
 std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string_view source);         // E4
 std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source);  // E10
 

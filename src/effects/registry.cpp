@@ -14,20 +14,28 @@ namespace {
 struct Registry {
   std::mutex mutex;
   std::map<std::string, EffectFactory, std::less<>> factories;
+  std::map<std::string, std::string, std::less<>> catalogue;  // name -> lidar-physics.md id
+  void add(const std::string& name, EffectFactory factory, std::string id) {
+    factories.insert_or_assign(name, std::move(factory));
+    catalogue.insert_or_assign(name, std::move(id));
+  }
 };
 
 Registry& registry() {
   static Registry* instance = [] {
     auto* r = new Registry;  // never destroyed: chains may be built during static destruction
     using namespace effects_detail;
-    r->factories.emplace("radiometry", make_radiometry);
-    r->factories.emplace("range_noise_linear", make_range_noise_linear);
-    r->factories.emplace("range_noise_piecewise", make_range_noise_piecewise);
-    r->factories.emplace("range_limits", make_range_limits);
-    r->factories.emplace("range_quantization", make_range_quantization);
-    r->factories.emplace("dropout", make_dropout);
-    r->factories.emplace("incidence", make_incidence);
-    r->factories.emplace("beam_calibration", make_beam_calibration);
+    // One line per built-in effect: name, factory, catalogue id (lidar-physics.md section 1).
+    r->add("radiometry", make_radiometry, "");  // section 2.2: the channels, not a range error
+    r->add("range_noise_linear", make_range_noise_linear, "E1");
+    r->add("range_noise_piecewise", make_range_noise_piecewise, "E1");
+    r->add("signal_precision", make_signal_precision, "E2");
+    r->add("range_walk", make_range_walk, "E3");
+    r->add("incidence", make_incidence, "E4");
+    r->add("dropout", make_dropout, "E5");
+    r->add("range_quantization", make_range_quantization, "E9");
+    r->add("beam_calibration", make_beam_calibration, "E10");
+    r->add("range_limits", make_range_limits, "E16");
     return r;
   }();
   return *instance;
@@ -35,10 +43,18 @@ Registry& registry() {
 
 }  // namespace
 
-void register_effect(std::string name, EffectFactory factory) {
+void register_effect(std::string name, EffectFactory factory, std::string catalogue) {
   Registry& r = registry();
   const std::lock_guard lock(r.mutex);
-  r.factories.insert_or_assign(std::move(name), std::move(factory));
+  r.add(name, std::move(factory), std::move(catalogue));
+}
+
+std::optional<std::string> effect_catalogue(std::string_view name) {
+  Registry& r = registry();
+  const std::lock_guard lock(r.mutex);
+  const auto found = r.catalogue.find(name);
+  if (found == r.catalogue.end()) return std::nullopt;
+  return found->second;
 }
 
 std::vector<std::string> registered_effects() {

@@ -1,5 +1,7 @@
 // Effects from JSON: errors name the source, path and range; round trips; the registry; every
 // shipped profile's chain builds.
+#include <map>
+
 #include "effects/effects_test_support.h"
 
 using namespace effects_test;  // NOLINT(google-build-using-namespace): the shared test helpers
@@ -37,7 +39,7 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
             "beam_calibration, dropout, incidence, radiometry, range_limits, range_noise_linear, "
-            "range_noise_piecewise, range_quantization");
+            "range_noise_piecewise, range_quantization, range_walk, signal_precision");
   EXPECT_TRUE(
       error_of(json::array({{{"sigma0_m", 0.01}}}))
           .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
@@ -110,6 +112,24 @@ TEST(EffectRegistry, ListsBuiltInsAndAcceptsNewEffects) {
         ->with_parameters(std::vector<double>{0.001});
   });
   EXPECT_EQ(chain_of(json::array({{{"name", "test_alias_of_quantization"}}})).effects().size(), 1u);
+  EXPECT_EQ(lidartwin::effect_catalogue("test_alias_of_quantization"), "");
+}
+
+// Reports name the physics by lidar-physics.md's catalogue id.
+TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
+  const std::map<std::string, std::string> expected{{"range_noise_linear", "E1"}, {"range_noise_piecewise", "E1"},
+                                                    {"signal_precision", "E2"},   {"range_walk", "E3"},
+                                                    {"incidence", "E4"},          {"dropout", "E5"},
+                                                    {"range_quantization", "E9"}, {"beam_calibration", "E10"},
+                                                    {"range_limits", "E16"},      {"radiometry", ""}};
+  for (const std::string& name : lidartwin::registered_effects()) {
+    ASSERT_TRUE(expected.count(name)) << name << " is registered but this test does not know its catalogue id";
+    EXPECT_EQ(lidartwin::effect_catalogue(name), expected.at(name)) << name;
+  }
+  EXPECT_EQ(lidartwin::effect_catalogue("no_such_effect"), std::nullopt);
+  lidartwin::register_effect(
+      "test_fog", [](const json&, std::string_view) -> std::unique_ptr<lidartwin::Effect> { return nullptr; }, "E13");
+  EXPECT_EQ(lidartwin::effect_catalogue("test_fog"), "E13");
 }
 
 // ---- every profile's chain ----

@@ -2,6 +2,7 @@
 // The ordered list of effects a profile names, built through the registry.
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -16,7 +17,11 @@ namespace lidartwin {
 // Registry: effect name -> factory from its JSON parameters. A factory throws InputError naming
 // `source`, the key and the allowed range for a missing, unknown or out-of-range parameter.
 using EffectFactory = std::function<std::unique_ptr<Effect>(const nlohmann::json& params, std::string_view source)>;
-void register_effect(std::string name, EffectFactory factory);
+// catalogue: the effect's id in lidar-physics.md's catalogue ("E4"), so reports can name the
+// physics; empty for effects outside it.
+void register_effect(std::string name, EffectFactory factory, std::string catalogue = "");
+// The catalogue id an effect was registered with ("" if none); nullopt for an unknown name.
+std::optional<std::string> effect_catalogue(std::string_view name);
 std::vector<std::string> registered_effects();
 
 class EffectChain {
