@@ -317,6 +317,22 @@ TEST_F(Compare, AHiddenPerBeamCalibrationErrorShowsAsBiasByBeam) {
   }
 }
 
+// E12: a common-mode warm-up offset decaying over the capture: bias fails by time, largest first.
+TEST_F(Compare, AHiddenWarmUpDriftShowsAsBiasFallingWithTime) {
+  const nlohmann::json effect = {{"name", "drift"}, {"warmup_offset_m", 0.03}, {"warmup_time_s", 0.5}};
+  const nlohmann::json report = compare_hidden_effect(effect, "e12", out("e12"));
+  std::vector<double> bias;
+  for (const auto& bin : report["bins"]) {
+    if (bin["features"].size() == 1 && bin["features"].contains("time")) bias.push_back(bin["bias_m"]["measured"]);
+  }
+  ASSERT_EQ(bias.size(), 5u);
+  for (size_t k = 1; k < bias.size(); ++k) EXPECT_LT(bias[k], bias[k - 1]) << "time bin " << k;
+  EXPECT_GT(bias.front(), 0.01);  // 3 cm decaying with 0.5 s: about 1.5 cm over the first 0.4 s
+  const auto& worst = report["failing"][0];
+  EXPECT_EQ(worst["quantity"], "bias") << worst["sentence"];
+  EXPECT_TRUE(worst["features"].contains("time")) << worst["sentence"];
+}
+
 TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {
   const fs::path other = fs::path(testing::TempDir()) / ("compare_hall_512_" + std::to_string(getpid()));
   fs::remove_all(other);

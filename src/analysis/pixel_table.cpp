@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <mutex>
 #include <numbers>
 
@@ -124,6 +125,13 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
       observed.push_back({static_cast<uint32_t>(f), m, observed.size() * static_cast<size_t>(height)});
     }
   }
+  // Effects that drift (E12) count time from the capture's first observed column: a capture does
+  // not say when the sensor was powered on.
+  uint64_t first_stamp = std::numeric_limits<uint64_t>::max();
+  for (const ObservedColumn& oc : observed) {
+    first_stamp =
+        std::min(first_stamp, setup.capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)]);
+  }
   PixelTable table;
   table.resize(observed.size() * static_cast<size_t>(height));
 
@@ -158,6 +166,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
       ColumnContext column_context = context;
       column_context.frame = oc.frame;
       column_context.column = static_cast<uint32_t>(m);
+      column_context.time_s = static_cast<double>(stamp - first_stamp) * 1e-9;
       for (int r = 0; r < height; ++r) {
         const size_t p = oc.first_pixel + static_cast<size_t>(r);
         const IdealReturn& hit = ideal[static_cast<size_t>(r)];

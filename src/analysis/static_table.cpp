@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include <fmt/format.h>
@@ -98,6 +99,13 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
                     "range limits ({} pixels lie within 4 sigma of them)",
                     min_returns, frames, near_limits));
   }
+  // Drift (E12) counts from the capture's first column, as in the scene table.
+  uint64_t first_stamp = std::numeric_limits<uint64_t>::max();
+  for (const BatchedFrame& frame : capture.frames) {
+    for (const uint64_t stamp : frame.scan.timestamp_ns) {
+      if (stamp > 0) first_stamp = std::min(first_stamp, stamp);
+    }
+  }
   PixelTable t;
   t.resize(kept * frames);
   size_t p = 0;
@@ -114,6 +122,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         ColumnContext column_context = context;
         column_context.frame = f;
         column_context.column = static_cast<uint32_t>(m);
+        const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
+        column_context.time_s = stamp >= first_stamp ? static_cast<double>(stamp - first_stamp) * 1e-9 : 0.0;
         const Prediction prediction = setup.chain.predict(ideal, column_context);
         const RangeModel model = range_model(prediction, ideal.range_m, context.range_step_m, reach);
         t.set_measured(p, static_cast<uint32_t>(f), scan, m, r);

@@ -35,6 +35,7 @@ Registry& registry() {
     r->add("dropout", make_dropout, "E5");
     r->add("range_quantization", make_range_quantization, "E9");
     r->add("beam_calibration", make_beam_calibration, "E10");
+    r->add("drift", make_drift, "E12");
     r->add("range_limits", make_range_limits, "E16");
     return r;
   }();

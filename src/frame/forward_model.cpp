@@ -49,6 +49,7 @@ struct ForwardModel::Impl {
       const auto column = static_cast<size_t>(m);
       const double time_s = clock.column_pose_time_s(frame, m);
       columns.observed[column] = column_in_window(format().column_window, m) && span.contains(time_s);
+      columns.times_s[column] = time_s - clock.pose_origin_s;
       if (columns.observed[column]) columns.poses[column] = poses.at(time_s);
     }
   }
@@ -111,6 +112,7 @@ EncodedFrame ForwardModel::make_frame_buffer() const {
   frame.scan = Scan(format());
   const auto width = static_cast<size_t>(format().columns_per_frame);
   frame.columns.poses.resize(width);
+  frame.columns.times_s.resize(width);
   frame.columns.observed.assign(width, 0);
   frame.bytes.resize(impl_->firsts.size() * packet_size());
   return frame;

@@ -67,6 +67,7 @@ struct FrameRenderer::Impl {
       ColumnContext column_context = context;
       column_context.frame = columns.frame_index;
       column_context.column = static_cast<uint32_t>(m);
+      if (!columns.times_s.empty()) column_context.time_s = columns.times_s[static_cast<size_t>(m)];
       setup.chain.simulate(s.ideal[static_cast<size_t>(m - begin)], column_context, s.measured);
       encoder.write(s.measured, m, scan);
     }

@@ -72,6 +72,7 @@ struct ColumnContext {
   float range_step_m = 0.001f;  // 0.001 (RNG19, LEGACY) or 0.008 (RNG15 profiles)
   float max_wire_range_m = 524.287f;
   float signal_gain = 1.0f;  // signal_multiplier and lidar-mode integration (E18)
+  double time_s = 0.0;       // the column's time since the capture (or stream) began: drift (E12)
 };
 
 }  // namespace lidartwin

@@ -35,6 +35,7 @@ struct FrameColumns {
   uint64_t frame_index = 0;       // keys the noise (with seed, column, beam)
   std::vector<Pose> poses;        // [W] world_from_sensor
   std::vector<uint8_t> observed;  // [W] 0: no cast, zero pixels
+  std::vector<double> times_s;    // [W] since the sensor's clock began (effects' drift); empty: 0
 };
 
 class FrameRenderer {
