@@ -88,8 +88,9 @@ Features make_features(const PixelTable& t) {
   add({"azimuth", {0, 45, 90, 135, 180, 225, 270, 315, 360}, false, [&t](size_t i) {
          return std::min(f64(t.azimuth_deg[i]), 359.999);
        }});
-  add({"edge", {0, 1, 2}, true, [&t](size_t i) { return t.edge[i]; }});
-  add({"retro", {0, 1, 2}, true, [&t](size_t i) { return t.retro[i]; }});
+  // Pixel distances (lidar-physics.md 3.2: 0, 1, 2, 3-5, more than 5).
+  add({"edge", {0, 1, 2, 3, 6, 7}, true, [&t](size_t i) { return t.edge[i]; }});
+  add({"retro", {0, 1, 2, 3, 6, 7}, true, [&t](size_t i) { return t.retro[i]; }});
   int beams = 0;
   for (const uint16_t b : t.beam) beams = std::max(beams, b + 1);
   add({"beam", integer_edges(0, beams - 1, 1), true, [&t](size_t i) { return t.beam[i]; }});
@@ -316,6 +317,15 @@ void drop_explained_pairs(std::vector<FailingRegion>& failing) {
   });
 }
 
+// "at depth edges", "1 px from a depth edge", "3–5 px from a depth edge", "more than 5 px from a
+// depth edge".
+std::string distance_words(double lo, double hi, const char* on, const char* what) {
+  if (hi <= 0.0) return on;
+  if (lo >= PixelTable::kFarPixels) return fmt::format("more than {} px from {}", PixelTable::kFarPixels - 1, what);
+  if (lo == hi) return fmt::format("{} px from {}", number(lo), what);
+  return fmt::format("{}–{} px from {}", number(lo), number(hi), what);
+}
+
 }  // namespace
 
 std::string describe(const Region& region) {
@@ -335,8 +345,8 @@ std::string describe(const Region& region) {
     else if (name == "near_ir") parts.push_back(span("expected near-IR", " photons", 1e6));
     else if (name == "azimuth") parts.push_back(fmt::format("azimuth {}–{}°", number(lo), number(hi)));
     else if (name == "time") parts.push_back(fmt::format("time {:.2f}–{:.2f} s", lo, hi));
-    else if (name == "edge") parts.push_back(lo > 0 ? "at depth edges" : "away from depth edges");
-    else if (name == "retro") parts.push_back(lo > 0 ? "on retroreflectors" : "off retroreflectors");
+    else if (name == "edge") parts.push_back(distance_words(lo, hi, "at depth edges", "a depth edge"));
+    else if (name == "retro") parts.push_back(distance_words(lo, hi, "on retroreflectors", "a retroreflector"));
     else if (name == "material") parts.push_back(fmt::format("material {}", number(lo)));
     else if (lo == hi) parts.push_back(fmt::format("beam {}", number(lo)));
     else parts.push_back(fmt::format("beams {}–{}", number(lo), number(hi)));

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <numbers>
@@ -40,6 +41,89 @@ float channel_value(const Scan& scan, ChannelField field, int m, int r, float sc
 float signal_gain_of(const Metadata& metadata) {
   const auto it = metadata.config_params.find("signal_multiplier");
   return it != metadata.config_params.end() && it->is_number() ? it->get<float>() : 1.0f;
+}
+
+// Whether two neighbouring beams' ideal ranges lie on different surfaces: one hits and the other
+// does not, or their ranges differ by a depth step (the caster's rule for vertical edges).
+bool depth_step(float a, float b) {
+  const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
+  if (hit_a != hit_b) return true;
+  return hit_a && std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b));
+}
+
+// Multi-source breadth-first chessboard distance over a W x H grid (columns wrap around: a frame is
+// a full turn), capped at PixelTable::kFarPixels. index[m * H + r] is the table row of the pixel,
+// or -1 where the column was not observed; seed says where the distance is 0.
+void chessboard_distance(const std::vector<int64_t>& index, int width, int height,
+                         const std::function<bool(size_t)>& seed, std::vector<uint8_t>& out) {
+  std::vector<size_t> frontier, next;
+  for (size_t cell = 0; cell < index.size(); ++cell) {
+    if (index[cell] < 0) continue;
+    const auto row = static_cast<size_t>(index[cell]);
+    out[row] = PixelTable::kFarPixels;
+    if (seed(row)) {
+      out[row] = 0;
+      frontier.push_back(cell);
+    }
+  }
+  for (uint8_t d = 1; d < PixelTable::kFarPixels && !frontier.empty(); ++d) {
+    next.clear();
+    for (const size_t cell : frontier) {
+      const int m = static_cast<int>(cell) / height, r = static_cast<int>(cell) % height;
+      for (int dm = -1; dm <= 1; ++dm) {
+        for (int dr = -1; dr <= 1; ++dr) {
+          const int rr = r + dr;
+          if (rr < 0 || rr >= height) continue;
+          const int mm = (m + dm + width) % width;
+          const auto neighbour = static_cast<size_t>(mm * height + rr);
+          if (index[neighbour] < 0) continue;
+          uint8_t& distance = out[static_cast<size_t>(index[neighbour])];
+          if (distance > d) {
+            distance = d;
+            next.push_back(neighbour);
+          }
+        }
+      }
+    }
+    frontier.swap(next);
+  }
+}
+
+// Edge and retro distances, frame by frame, once every pixel's ideal return is in the table. On
+// entry t.edge holds the caster's vertical-edge flag and t.retro the pixel's own retro flag.
+void mark_neighbourhoods(PixelTable& t, const std::vector<ObservedColumn>& observed, size_t frames, int width,
+                         int height) {
+  std::vector<int64_t> index(static_cast<size_t>(width * height));
+  std::vector<uint8_t> edge_seed(t.size(), 0), retro_seed(t.retro);
+  size_t first = 0;
+  for (size_t f = 0; f < frames; ++f) {
+    std::fill(index.begin(), index.end(), -1);
+    size_t last = first;
+    while (last < observed.size() && observed[last].frame == f) {
+      const ObservedColumn& oc = observed[last++];
+      for (int r = 0; r < height; ++r) {
+        index[static_cast<size_t>(oc.column * height + r)] = static_cast<int64_t>(oc.first_pixel) + r;
+      }
+    }
+    // Depth steps: the caster's vertical edges, and horizontal ones between neighbouring columns.
+    for (size_t i = first; i < last; ++i) {
+      const ObservedColumn& oc = observed[i];
+      const int right = (oc.column + 1) % width;
+      for (int r = 0; r < height; ++r) {
+        const auto p = oc.first_pixel + static_cast<size_t>(r);
+        if (t.edge[p]) edge_seed[p] = 1;
+        const int64_t q = index[static_cast<size_t>(right * height + r)];
+        if (q >= 0 && depth_step(t.ideal_range_m[p], t.ideal_range_m[static_cast<size_t>(q)])) {
+          edge_seed[p] = edge_seed[static_cast<size_t>(q)] = 1;
+        }
+      }
+    }
+    chessboard_distance(
+        index, width, height, [&](size_t p) { return edge_seed[p] != 0; }, t.edge);
+    chessboard_distance(
+        index, width, height, [&](size_t p) { return retro_seed[p] != 0; }, t.retro);
+    first = last;
+  }
 }
 
 }  // namespace
@@ -179,6 +263,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
     }
     report_progress();
   });
+  mark_neighbourhoods(table, observed, setup.capture.frames.size(), width, height);
   if (no_spread) {
     throw InputError(
         "--profile: its effect chain predicts no range spread (variance 0) for pixels it detects, so no measured "

@@ -128,7 +128,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         const RangeModel model = range_model(prediction, ideal.range_m, context.range_step_m, reach);
         t.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
         t.set_model(p, ideal, prediction, model);
-        t.material[p] = 0xFFFF;        // no scene: no material, and incidence unknown (0 here, not binned)
+        t.material[p] = 0xFFFF;  // no scene: no material; incidence, edges and retros unknown (not binned)
+        t.edge[p] = t.retro[p] = PixelTable::kFarPixels;
         t.predicted_bias_m[p] = 0.0f;  // the mean is the data's own
         // Residuals about a mean estimated from the same n returns spread by sqrt(1 - 1/n) less.
         t.predicted_sigma_m[p] = static_cast<float>(model.sigma_m * std::sqrt(1.0 - 1.0 / n));

@@ -36,8 +36,11 @@ struct PixelTable {
   std::vector<float> incidence_deg;
   std::vector<float> material_reflectivity;  // diffuse, 0..1
   std::vector<uint16_t> material;
+  // Pixel distances (chessboard, in the frame's beam x measurement-id grid) to the nearest depth
+  // discontinuity and to the nearest retroreflective hit: 0 on one, kFarPixels for more than 5.
+  static constexpr uint8_t kFarPixels = 6;
   std::vector<uint8_t> retro;
-  std::vector<uint8_t> edge;       // at a depth discontinuity in the column
+  std::vector<uint8_t> edge;
   std::vector<float> azimuth_deg;  // encoder angle of the column (protocol doc 7.1)
   // The chain's prediction.
   std::vector<float> predicted_bias_m;
