@@ -95,9 +95,13 @@ class Steps {
     if (tty_) std::fprintf(stderr, "\r%-60s", what);
     started_ = std::chrono::steady_clock::now();
   }
-  // "\r<what> 45 %" while a long step runs.
+  // "\r<what> [=========           ]  45 %" while a long step runs.
   void progress(const char* what, double fraction) const {
-    if (tty_) std::fprintf(stderr, "\r%-52s %3.0f %%", what, 100.0 * fraction);
+    if (!tty_) return;
+    constexpr int kWidth = 20;
+    const int filled = static_cast<int>(fraction * kWidth);
+    std::fprintf(stderr, "\r%-60s [%s%s] %3.0f %%", what, std::string(static_cast<size_t>(filled), '=').c_str(),
+                 std::string(static_cast<size_t>(kWidth - filled), ' ').c_str(), 100.0 * fraction);
   }
   void done() const {
     if (tty_) std::fprintf(stderr, " %.1f s\n", seconds());
