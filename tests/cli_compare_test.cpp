@@ -262,7 +262,7 @@ fs::path profile_with(const nlohmann::json& effect, const std::string& name) {
 }
 
 // A capture recorded with an effect the compared profile lacks: the report shows that effect's
-// fingerprint (lidar-physics.md's diagnostic matrix).
+// fingerprint (lidar-physics.md's diagnostic matrix), and --diagnose names it.
 nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::string& name, const fs::path& out_dir) {
   const fs::path capture = out_dir / "capture";
   EXPECT_EQ(lidartwin("record --profile " + profile_with(effect, name).string() + " --scene " + kHall +
@@ -270,7 +270,7 @@ nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::st
                 .code,
             0);
   const CliRun r = lidartwin("compare --capture " + capture.string() + " --scene " + kHall +
-                             " --profile os1-64 --no-plots --out " + (out_dir / "report").string());
+                             " --profile os1-64 --no-plots --diagnose --out " + (out_dir / "report").string());
   EXPECT_EQ(r.code, 0) << r.err;
   return read_json(out_dir / "report" / "report.json");
 }
@@ -300,6 +300,19 @@ TEST_F(Compare, AHiddenIncidenceEffectShowsAsSpreadGrowingWithIncidence) {
     }
   }
   EXPECT_TRUE(spread_at_grazing);
+  // The diagnosis names E4 first, keeps it alone, and its fitted divergence covers the true 0.13°
+  // (0.00227 rad, the effect's default) and zero bias.
+  const auto& diagnosis = report["diagnosis"];
+  EXPECT_EQ(diagnosis["verdict"], "missing effect");
+  EXPECT_EQ(diagnosis["ranked"][0]["effect"], "incidence");
+  EXPECT_EQ(diagnosis["ranked"][0]["catalogue"], "E4");
+  ASSERT_EQ(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);
+  const auto& params = diagnosis["selected"][0]["params"];
+  EXPECT_LE(params["divergence_rad"]["ci95"][0].get<double>(), 0.00227);
+  EXPECT_GE(params["divergence_rad"]["ci95"][1].get<double>(), 0.00227);
+  EXPECT_LE(params["bias_factor"]["ci95"][0].get<double>(), 0.0);
+  EXPECT_GE(params["bias_factor"]["ci95"][1].get<double>(), 0.0);
+  EXPECT_FALSE(diagnosis["ranked"][0]["repairs"].empty());
 }
 
 // E10: per-beam range offsets: the worst regions are single beams, each with its own bias; the
@@ -331,6 +344,30 @@ TEST_F(Compare, AHiddenWarmUpDriftShowsAsBiasFallingWithTime) {
   const auto& worst = report["failing"][0];
   EXPECT_EQ(worst["quantity"], "bias") << worst["sentence"];
   EXPECT_TRUE(worst["features"].contains("time")) << worst["sentence"];
+  // The diagnosis names E12 and fits the warm-up it was recorded with.
+  const auto& diagnosis = report["diagnosis"];
+  EXPECT_EQ(diagnosis["verdict"], "missing effect");
+  ASSERT_EQ(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);
+  EXPECT_EQ(diagnosis["selected"][0]["effect"], "drift");
+  const auto& params = diagnosis["selected"][0]["params"];
+  for (const auto& [name, truth] :
+       {std::pair{"warmup_offset_m", 0.03}, std::pair{"warmup_time_s", 0.5}, std::pair{"offset_m", 0.0}}) {
+    EXPECT_LE(params[name]["ci95"][0].get<double>(), truth) << name << " " << params[name].dump();
+    EXPECT_GE(params[name]["ci95"][1].get<double>(), truth) << name << " " << params[name].dump();
+  }
+}
+
+// The null case: the profile that made the capture; no candidate improves BIC.
+TEST_F(Compare, TheDiagnosisFindsNothingMissingWhenNothingIs) {
+  const fs::path dir = out("null_diagnosis");
+  const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall +
+                             " --profile os1-64 --no-plots --diagnose --out " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json diagnosis = read_json(dir / "report.json")["diagnosis"];
+  EXPECT_EQ(diagnosis["verdict"], "no missing effect") << diagnosis.dump(1);
+  EXPECT_TRUE(diagnosis["selected"].empty());
+  EXPECT_EQ(diagnosis["ranked"].size(), 4u);  // E2, E3, E4, E12: the fittable effects os1-64 lacks
+  for (const auto& c : diagnosis["ranked"]) EXPECT_LT(c["delta_bic"].get<double>(), 0.0) << c.dump();
 }
 
 TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {

@@ -133,8 +133,8 @@ void PixelTable::resize(size_t n) {
   for (auto* v : {&beam, &column, &material}) v->resize(n);
   time_s.resize(n);
   for (auto* v : {&range_m, &signal, &reflectivity, &near_ir, &range2_m, &ideal_range_m, &incidence_deg,
-                  &material_reflectivity, &azimuth_deg, &predicted_bias_m, &predicted_sigma_m, &p_detect, &outlier_mix,
-                  &expected_signal, &expected_near_ir, &window_min_m, &window_max_m, &step_m}) {
+                  &material_reflectivity, &specular, &azimuth_deg, &predicted_bias_m, &predicted_sigma_m, &p_detect,
+                  &outlier_mix, &expected_signal, &expected_near_ir, &window_min_m, &window_max_m, &step_m}) {
     v->resize(n);
   }
   for (auto* v : {&retro, &edge}) v->resize(n);
@@ -160,6 +160,7 @@ void PixelTable::set_model(size_t i, const IdealReturn& ideal, const Prediction&
                                        180.0 / std::numbers::pi)
                   : 0.0f;
   material_reflectivity[i] = ideal.reflectivity;
+  specular[i] = ideal.specular;
   material[i] = static_cast<uint16_t>(ideal.hit() ? ideal.material_id : 0xFFFF);
   retro[i] = ideal.retroreflective;
   edge[i] = ideal.edge;
@@ -172,6 +173,27 @@ void PixelTable::set_model(size_t i, const IdealReturn& ideal, const Prediction&
   window_min_m[i] = static_cast<float>(model.window_min_m);
   window_max_m[i] = static_cast<float>(model.window_max_m);
   step_m[i] = static_cast<float>(model.step_m);
+}
+
+IdealReturn PixelTable::ideal_of(size_t i) const {
+  IdealReturn ideal;
+  ideal.range_m = ideal_range_m[i];
+  ideal.cos_incidence = static_cast<float>(std::cos(static_cast<double>(incidence_deg[i]) * std::numbers::pi / 180.0));
+  ideal.reflectivity = material_reflectivity[i];
+  ideal.specular = specular[i];
+  ideal.material_id = material[i] == 0xFFFF ? 0 : material[i];
+  ideal.retroreflective = ideal.hit() && retro[i] == 0 ? 1 : 0;
+  ideal.edge = ideal.hit() && edge[i] == 0 ? 1 : 0;
+  ideal.beam = beam[i];
+  return ideal;
+}
+
+ColumnContext PixelTable::context_of(size_t i) const {
+  ColumnContext c = context;
+  c.frame = frame[i];
+  c.column = column[i];
+  c.time_s = time_s[i] - start_s;
+  return c;
 }
 
 PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
@@ -218,6 +240,8 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   }
   PixelTable table;
   table.resize(observed.size() * static_cast<size_t>(height));
+  table.context = context;
+  table.start_s = observed.empty() ? 0.0 : static_cast<double>(first_stamp) * 1e-9;
 
   std::atomic<bool> no_spread{false};
   std::vector<std::vector<IdealReturn>> scratch(static_cast<size_t>(pool.size()),

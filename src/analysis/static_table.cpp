@@ -108,6 +108,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
   }
   PixelTable t;
   t.resize(kept * frames);
+  t.context = context;
+  t.start_s = static_cast<double>(first_stamp) * 1e-9;
   size_t p = 0;
   for (size_t f = 0; f < frames; ++f) {
     const Scan& scan = capture.frames[f].scan;

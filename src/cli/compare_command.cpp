@@ -17,6 +17,7 @@
 #include "cli/command.h"
 #include "cli/serve_inputs.h"
 #include "lidartwin/analysis/compare_report.h"
+#include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/measured_capture.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/analysis/pixel_table.h"
@@ -49,6 +50,7 @@ struct CompareFlags {
   bool plots = true;
   bool static_mode = false;
   bool refine_pose = false;
+  bool diagnose = false;
 };
 
 // A `record` output directory stands for its capture, metadata and ground-truth poses.
@@ -228,7 +230,17 @@ int run_compare(const CompareFlags& flags) {
       {"lidar_mode", to_string(LidarMode{capture.metadata.format.columns_per_frame, capture.metadata.format.fps})},
       {"udp_profile_lidar", to_string(capture.metadata.format.udp_profile_lidar)}};
   if (compared.refinement) inputs["pose_refinement"] = refinement_json(*compared.refinement);
-  write_json(fs::path(flags.out) / "report.json", compare_report(misfit, inputs, flags.alpha));
+  nlohmann::json report = compare_report(misfit, inputs, flags.alpha);
+  std::optional<Diagnosis> diagnosis;
+  if (flags.diagnose) {
+    steps.start("diagnosing: fitting each library effect the profile lacks");
+    DiagnoseOptions diagnose_options;
+    diagnose_options.alpha = flags.alpha;
+    diagnosis = lidartwin::diagnose(table, chain, misfit, diagnose_options);
+    report["diagnosis"] = diagnosis_json(*diagnosis);
+    steps.done();
+  }
+  write_json(fs::path(flags.out) / "report.json", report);
   steps.start("writing pixels.npz");
   write_pixels_npz(fs::path(flags.out) / "pixels.npz", table, scores);
   steps.done();
@@ -257,6 +269,17 @@ int run_compare(const CompareFlags& flags) {
     for (size_t i = 0; i < std::min(flags.show, misfit.failing.size()); ++i) {
       std::printf("  %2zu. [%s] %s\n", i + 1, misfit.failing[i].quantity.c_str(), misfit.failing[i].sentence.c_str());
     }
+  }
+  if (diagnosis) {
+    std::printf("diagnosis on %zu pixels: %s\n", diagnosis->pixels, diagnosis->verdict.c_str());
+    for (size_t i = 0; i < std::min<size_t>(diagnosis->ranked.size(), 5); ++i) {
+      const Candidate& c = diagnosis->ranked[i];
+      std::string params;
+      for (const FittedParameter& p : c.params) params += fmt::format(" {}={:.4g}", p.name, p.value);
+      std::printf("  %s (%s): delta BIC %+.1f, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
+                  c.p_value, params.c_str());
+    }
+    for (const Candidate& c : diagnosis->selected) std::printf("  selected: %s\n", c.effect.c_str());
   }
   std::string plots = "report.html not written (--no-plots)";
   if (flags.plots) {
@@ -304,6 +327,9 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   sub->add_flag("!--no-plots", flags->plots, "skip report.html (tools/compare-plots.py)");
+  sub->add_flag("--diagnose", flags->diagnose,
+                "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing")
+      ->excludes("--static");
   sub->callback([&run, flags] { run = [flags] { return run_compare(*flags); }; });
 }
 

@@ -35,6 +35,7 @@ struct PixelTable {
   std::vector<float> ideal_range_m;  // 0: the beam hits nothing in the scene
   std::vector<float> incidence_deg;
   std::vector<float> material_reflectivity;  // diffuse, 0..1
+  std::vector<float> specular;
   std::vector<uint16_t> material;
   // Pixel distances (chessboard, in the frame's beam x measurement-id grid) to the nearest depth
   // discontinuity and to the nearest retroreflective hit: 0 on one, kFarPixels for more than 5.
@@ -53,7 +54,13 @@ struct PixelTable {
   std::vector<float> window_max_m;
   std::vector<float> step_m;  // width of the measured range bins
 
+  ColumnContext context;  // what every column's context shares (range step, wire limit, signal gain)
+  double start_s = 0.0;   // time_s of the capture's first observed column (effects' drift clock)
+
   size_t size() const { return beam.size(); }
+  // The ideal return and column context pixel i stands for, as the chain's predict saw them.
+  IdealReturn ideal_of(size_t i) const;
+  ColumnContext context_of(size_t i) const;
   void resize(size_t n);
   // Pixel i: where it is (row r of measurement id m of frame f) and what the scan measured there.
   void set_measured(size_t i, uint32_t f, const Scan& scan, int m, int r);

@@ -1,0 +1,53 @@
+#pragma once
+// Which physical effect is missing (lidar-physics.md 3.4): every library effect the profile lacks
+// is added to its chain in turn, its parameters fitted by maximum likelihood (NLopt) on the pixel
+// table, and the candidates ranked by the improvement in BIC, with a likelihood-ratio test and the
+// failing regions each one repairs. Forward stepwise: the best is kept and the others refitted
+// given it while the improvement stays significant, so two hidden effects are both found.
+#include <string>
+#include <vector>
+
+#include "lidartwin/analysis/misfit.h"
+#include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/effects/effect_chain.h"
+
+namespace lidartwin {
+
+struct FittedParameter {
+  std::string name;
+  double value = 0.0;
+  double ci95_lo = 0.0, ci95_hi = 0.0;  // from the observed information (curvature of the NLL)
+};
+
+struct Candidate {
+  std::string effect;     // registry name
+  std::string catalogue;  // lidar-physics.md id, e.g. "E4"
+  std::vector<FittedParameter> params;
+  double delta_nll = 0.0;            // NLL of the chain without it minus with it, nats over the fitted pixels
+  double delta_bic = 0.0;            // 2 delta_nll - k ln n: > 0 favours the effect
+  double p_value = 1.0;              // likelihood-ratio test, chi-square with k degrees of freedom
+  std::vector<std::string> repairs;  // sentences of the failing regions that no longer fail with it
+  nlohmann::json effect_json;        // the fitted effect, as a profile lists it
+};
+
+struct Diagnosis {
+  std::string verdict;              // "no missing effect" or "missing effect"
+  std::vector<Candidate> ranked;    // first round, best first
+  std::vector<Candidate> selected;  // kept, in the order added
+  size_t pixels = 0;                // pixels the fits used
+};
+
+struct DiagnoseOptions {
+  double alpha = 0.01;          // the LRT's level, Bonferroni-corrected over the candidates
+  double min_delta_bic = 10.0;  // "very strong" evidence on the Kass-Raftery scale
+  size_t max_pixels = 200'000;  // evenly subsampled from the table for the fits
+  int max_effects = 3;
+};
+
+// chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).
+Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
+                   const DiagnoseOptions& options = {});
+
+nlohmann::json diagnosis_json(const Diagnosis& diagnosis);
+
+}  // namespace lidartwin

@@ -1,0 +1,230 @@
+// Forward-stepwise search for the missing effect: fit each candidate by maximum likelihood on the
+// pixel table, rank by delta BIC (lidar-physics.md 3.4, 3.5).
+#include "lidartwin/analysis/diagnosis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include <fmt/format.h>
+#include <nlopt.hpp>
+
+#include "lidartwin/analysis/pixel_likelihood.h"
+
+namespace lidartwin {
+namespace {
+
+// What the search tries: each effect with the parameters it fits, their starting values and the
+// scale of a first step (NLopt's BOBYQA works in these units). Effects whose parameters are not a
+// handful of numbers (beam_calibration's per-beam values come from a unit seed) are not here yet.
+struct FreeParameter {
+  const char* name;
+  double start;
+  double step;
+};
+struct CandidateSpec {
+  const char* effect;
+  std::vector<FreeParameter> free;
+};
+const std::vector<CandidateSpec>& candidate_specs() {
+  static const std::vector<CandidateSpec> specs{
+      {"signal_precision", {{"k_m", 0.05, 0.05}}},
+      {"range_walk", {{"walk_m", 0.0, 0.005}, {"retro_offset_m", 0.0, 0.01}}},
+      {"incidence", {{"divergence_rad", 0.002, 0.001}, {"bias_factor", 0.0, 0.2}}},
+      {"drift", {{"offset_m", 0.0, 0.005}, {"warmup_offset_m", 0.0, 0.01}, {"warmup_time_s", 1.0, 0.5}}},
+  };
+  return specs;
+}
+
+// The fitted pixels: an even subsample of those that meet a surface.
+std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels) {
+  size_t hits = 0;
+  for (const float r : t.ideal_range_m) hits += r > 0.0f;
+  const size_t stride = std::max<size_t>(1, hits / std::max<size_t>(max_pixels, 1));
+  std::vector<size_t> rows;
+  size_t seen = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.ideal_range_m[i] > 0.0f && seen++ % stride == 0) rows.push_back(i);
+  }
+  return rows;
+}
+
+// Total NLL of the rows under a chain (the same likelihood compare scores with).
+double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain) {
+  double nll = 0.0;
+  for (const size_t i : rows) {
+    const Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
+    const RangeModel model = range_model(p, t.ideal_range_m[i], t.step_m[i], t.window_max_m[i]);
+    nll += score_pixel(model, t.range_m[i], 0.5).nll;
+  }
+  return nll;
+}
+
+// The table with every pixel's prediction redone by another chain (what was measured unchanged).
+PixelTable repredicted(const PixelTable& t, const EffectChain& chain) {
+  PixelTable out = t;
+  for (size_t i = 0; i < t.size(); ++i) {
+    const IdealReturn ideal = t.ideal_of(i);
+    const Prediction p = chain.predict(ideal, t.context_of(i));
+    const RangeModel model = range_model(p, ideal.range_m, t.step_m[i], t.window_max_m[i]);
+    const uint8_t edge = out.edge[i], retro = out.retro[i];
+    const uint16_t material = out.material[i];
+    out.set_model(i, ideal, p, model);
+    out.edge[i] = edge;  // distances, not the flags set_model copies from the ideal return
+    out.retro[i] = retro;
+    out.material[i] = material;
+  }
+  return out;
+}
+
+// The chain with `effect` inserted before its range limits (what limits the window must see the
+// shifted range), or appended.
+EffectChain with_candidate(const EffectChain& chain, const nlohmann::json& effect) {
+  nlohmann::json document = chain.to_json();
+  auto limits = std::find_if(document.begin(), document.end(), [](const nlohmann::json& e) {
+    return e.value("name", "") == "range_limits" || e.value("name", "") == "range_quantization";
+  });
+  document.insert(limits, effect);
+  return EffectChain::from_json(document, "diagnosis candidate");
+}
+
+double chi2_upper(double x, double dof) {
+  if (x <= 0.0) return 1.0;
+  const double v = 2.0 / (9.0 * dof);
+  return 1.0 - normal_cdf((std::cbrt(x / dof) - (1.0 - v)) / std::sqrt(v));
+}
+
+Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& base, double base_nll,
+              const CandidateSpec& spec) {
+  // Bounds from the effect's own parameter table.
+  const EffectChain probe = with_candidate(base, {{"name", spec.effect}});
+  const auto effect = std::find_if(probe.effects().begin(), probe.effects().end(),
+                                   [&](const auto& e) { return e->name() == spec.effect; });
+  const std::vector<EffectParameter> all = (*effect)->parameters();
+  std::vector<double> lower, upper, x, steps;
+  for (const FreeParameter& f : spec.free) {
+    const auto it = std::find_if(all.begin(), all.end(), [&](const EffectParameter& p) { return p.name == f.name; });
+    lower.push_back(it->lower);
+    upper.push_back(it->upper);
+    x.push_back(std::clamp(f.start, it->lower, it->upper));
+    steps.push_back(f.step);
+  }
+  const auto effect_json = [&](const std::vector<double>& values) {
+    nlohmann::json e = {{"name", spec.effect}};
+    for (size_t k = 0; k < values.size(); ++k) e[spec.free[k].name] = values[k];
+    return e;
+  };
+  const auto objective = [&](const std::vector<double>& values) {
+    return total_nll(t, rows, with_candidate(base, effect_json(values)));
+  };
+  nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(x.size()));
+  opt.set_lower_bounds(lower);
+  opt.set_upper_bounds(upper);
+  opt.set_initial_step(steps);
+  opt.set_xtol_rel(1e-4);
+  opt.set_ftol_abs(1e-3);
+  opt.set_maxeval(150);
+  struct Data {
+    const decltype(objective)* f;
+  } data{&objective};
+  opt.set_min_objective(
+      [](const std::vector<double>& v, std::vector<double>&, void* d) { return (*static_cast<Data*>(d)->f)(v); },
+      &data);
+  double best = base_nll;
+  try {
+    opt.optimize(x, best);
+  } catch (const std::exception&) {  // roundoff-limited stops keep the best point found
+  }
+  Candidate c;
+  c.effect = spec.effect;
+  c.catalogue = effect_catalogue(spec.effect).value_or("");
+  c.delta_nll = base_nll - best;
+  const auto k = static_cast<double>(x.size());
+  c.delta_bic = 2.0 * c.delta_nll - k * std::log(static_cast<double>(rows.size()));
+  c.p_value = chi2_upper(2.0 * c.delta_nll, k);
+  c.effect_json = effect_json(x);
+  // 95 % intervals from the curvature of the NLL in each parameter (the others held).
+  for (size_t j = 0; j < x.size(); ++j) {
+    const double h = std::max(steps[j] * 0.05, 1e-9);
+    std::vector<double> up = x, down = x;
+    up[j] = std::min(x[j] + h, upper[j]);
+    down[j] = std::max(x[j] - h, lower[j]);
+    const double f0 = best, fu = objective(up), fd = objective(down);
+    const double hu = up[j] - x[j], hd = x[j] - down[j];
+    const double curvature =
+        hu > 0 && hd > 0 ? 2.0 * (fu * hd + fd * hu - f0 * (hu + hd)) / (hu * hd * (hu + hd)) : 0.0;
+    const double half = curvature > 0 ? 1.96 / std::sqrt(curvature) : std::numeric_limits<double>::infinity();
+    c.params.push_back({spec.free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half)});
+  }
+  return c;
+}
+
+}  // namespace
+
+Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
+                   const DiagnoseOptions& options) {
+  Diagnosis d;
+  const std::vector<size_t> rows = subsample(table, options.max_pixels);
+  d.pixels = rows.size();
+  std::set<std::string> present;
+  for (const auto& e : chain.effects()) present.insert(std::string(e->name()));
+  std::vector<const CandidateSpec*> pool;
+  for (const CandidateSpec& spec : candidate_specs()) {
+    if (!present.count(spec.effect)) pool.push_back(&spec);
+  }
+  EffectChain current = chain;
+  double current_nll = total_nll(table, rows, current);
+  const double corrected_alpha = options.alpha / static_cast<double>(std::max<size_t>(pool.size(), 1));
+  for (int round = 0; round < options.max_effects && !pool.empty(); ++round) {
+    std::vector<Candidate> fits;
+    for (const CandidateSpec* spec : pool) fits.push_back(fit(table, rows, current, current_nll, *spec));
+    std::sort(fits.begin(), fits.end(),
+              [](const Candidate& a, const Candidate& b) { return a.delta_bic > b.delta_bic; });
+    if (round == 0) d.ranked = fits;
+    const Candidate& best = fits.front();
+    if (best.delta_bic < options.min_delta_bic || best.p_value > corrected_alpha) break;
+    d.selected.push_back(best);
+    current = with_candidate(current, best.effect_json);
+    current_nll -= best.delta_nll;
+    std::erase_if(pool, [&](const CandidateSpec* s) { return best.effect == s->effect; });
+  }
+  d.verdict = d.selected.empty() ? "no missing effect" : "missing effect";
+  // What each first-round candidate that helps repairs: the failing regions of the profile's chain
+  // that no longer fail once the fitted candidate joins it (the whole table rescored).
+  std::set<std::pair<std::string, std::string>> failing;
+  for (const FailingRegion& f : misfit.failing) failing.insert({f.quantity, describe(f.region)});
+  for (Candidate& c : d.ranked) {
+    if (c.delta_bic <= 0.0) continue;
+    const PixelTable with = repredicted(table, with_candidate(chain, c.effect_json));
+    MisfitOptions misfit_options;
+    misfit_options.alpha = options.alpha;
+    const Misfit after = find_misfit(with, score_pixels(with), misfit.summary.frames, misfit_options);
+    std::set<std::pair<std::string, std::string>> still;
+    for (const FailingRegion& f : after.failing) still.insert({f.quantity, describe(f.region)});
+    for (const FailingRegion& f : misfit.failing) {
+      if (!still.count({f.quantity, describe(f.region)})) c.repairs.push_back(f.sentence);
+    }
+  }
+  return d;
+}
+
+nlohmann::json diagnosis_json(const Diagnosis& d) {
+  const auto candidate_json = [](const Candidate& c) {
+    nlohmann::json params = nlohmann::json::object();
+    for (const FittedParameter& p : c.params) params[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+    return nlohmann::json{{"effect", c.effect},       {"catalogue", c.catalogue}, {"delta_bic", c.delta_bic},
+                          {"delta_nll", c.delta_nll}, {"p_value", c.p_value},     {"params", params},
+                          {"repairs", c.repairs}};
+  };
+  nlohmann::json ranked = nlohmann::json::array(), selected = nlohmann::json::array();
+  for (const Candidate& c : d.ranked) ranked.push_back(candidate_json(c));
+  for (const Candidate& c : d.selected) selected.push_back(candidate_json(c));
+  return {{"verdict", d.verdict},
+          {"ranked", ranked},
+          {"selected", selected},
+          {"pixels", d.pixels},
+          {"unexplained", nlohmann::json::array()},
+          {"parameter_misfit", nlohmann::json::array()}};
+}
+
+}  // namespace lidartwin
