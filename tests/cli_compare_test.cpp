@@ -357,6 +357,43 @@ TEST_F(Compare, AHiddenWarmUpDriftShowsAsBiasFallingWithTime) {
   }
 }
 
+// fit: the profile with the missing effect added and fitted; compared again, the error falls to what
+// the model expects, and nothing fails.
+TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFalls) {
+  const fs::path dir = out("fit");
+  const nlohmann::json effect = {{"name", "drift"}, {"warmup_offset_m", 0.03}, {"warmup_time_s", 0.5}};
+  const nlohmann::json before = compare_hidden_effect(effect, "fit_e12", dir);
+  const fs::path fitted = dir / "fitted.json";
+  const std::string measured = " --capture " + (dir / "capture").string() + " --scene " + kHall;
+  const CliRun r = lidartwin("fit" + measured + " --profile os1-64 --add drift --out " + fitted.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("drift (E12)"), std::string::npos) << r.out;
+  const nlohmann::json profile = read_json(fitted);
+  EXPECT_EQ(profile["fit"]["effects"][0]["effect"], "drift");
+  const auto& ci = profile["fit"]["effects"][0]["params"]["warmup_offset_m"]["ci95"];
+  EXPECT_LE(ci[0].get<double>(), 0.03);
+  EXPECT_GE(ci[1].get<double>(), 0.03);
+
+  const fs::path again = dir / "again";
+  ASSERT_EQ(
+      lidartwin("compare" + measured + " --profile " + fitted.string() + " --no-plots --out " + again.string()).code,
+      0);
+  const nlohmann::json after = read_json(again / "report.json");
+  const auto excess = [](const nlohmann::json& report) {
+    const auto& s = report["summary"];
+    return (s["nll_per_pixel"].get<double>() - s["nll_expected"].get<double>()) / s["nll_se"].get<double>();
+  };
+  EXPECT_GT(excess(before), 100.0);
+  EXPECT_LT(std::abs(excess(after)), 4.0);
+  EXPECT_TRUE(after["failing"].empty()) << after["failing"][0]["sentence"];
+
+  const CliRun refused =
+      lidartwin("fit" + measured + " --profile os1-64 --add beam_calibration --out " + (dir / "no.json").string());
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("--add beam_calibration: not an effect the fit can estimate"), std::string::npos)
+      << refused.err;
+}
+
 // The null case: the profile that made the capture; no candidate improves BIC.
 TEST_F(Compare, TheDiagnosisFindsNothingMissingWhenNothingIs) {
   const fs::path dir = out("null_diagnosis");

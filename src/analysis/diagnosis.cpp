@@ -7,9 +7,11 @@
 #include <set>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlopt.hpp>
 
 #include "lidartwin/analysis/pixel_likelihood.h"
+#include "lidartwin/error.h"
 
 namespace lidartwin {
 namespace {
@@ -206,6 +208,41 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
     }
   }
   return d;
+}
+
+std::vector<std::string> fittable_effects() {
+  std::vector<std::string> names;
+  for (const CandidateSpec& spec : candidate_specs()) names.emplace_back(spec.effect);
+  return names;
+}
+
+std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
+                                   const std::vector<std::string>& effects, const DiagnoseOptions& options) {
+  const std::vector<size_t> rows = subsample(table, options.max_pixels);
+  EffectChain current = chain;
+  double current_nll = total_nll(table, rows, current);
+  std::vector<Candidate> fits;
+  for (const std::string& name : effects) {
+    const auto spec = std::find_if(candidate_specs().begin(), candidate_specs().end(),
+                                   [&](const CandidateSpec& s) { return name == s.effect; });
+    if (spec == candidate_specs().end()) {
+      throw InputError(fmt::format("--add {}: not an effect the fit can estimate; fittable: {}", name,
+                                   fmt::join(fittable_effects(), ", ")));
+    }
+    for (const auto& e : current.effects()) {
+      if (e->name() == name) throw InputError(fmt::format("--add {}: the profile's chain already has it", name));
+    }
+    fits.push_back(fit(table, rows, current, current_nll, *spec));
+    current = with_candidate(current, fits.back().effect_json);
+    current_nll -= fits.back().delta_nll;
+  }
+  return fits;
+}
+
+EffectChain chain_with(const EffectChain& chain, const std::vector<Candidate>& added) {
+  EffectChain out = chain;
+  for (const Candidate& c : added) out = with_candidate(out, c.effect_json);
+  return out;
 }
 
 nlohmann::json diagnosis_json(const Diagnosis& d) {

@@ -49,7 +49,7 @@ std::vector<std::string> available_profiles() {
   return names;
 }
 
-SensorProfile load_profile(std::string_view name_or_path) {
+std::filesystem::path profile_file(std::string_view name_or_path) {
   std::filesystem::path path(name_or_path);
   if (!looks_like_path(name_or_path)) {
     path = profiles_dir() / (std::string(name_or_path) + ".json");
@@ -58,6 +58,11 @@ SensorProfile load_profile(std::string_view name_or_path) {
                        "; available: " + list_available());
     }
   }
+  return path;
+}
+
+SensorProfile load_profile(std::string_view name_or_path) {
+  const std::filesystem::path path = profile_file(name_or_path);
   return parse_profile(read_json(path), path.string());
 }
 

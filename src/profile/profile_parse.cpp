@@ -132,7 +132,7 @@ SensorProfile parse_profile(const nlohmann::json& document, std::string_view sou
   const Location root{std::string(source), ""};
   const ObjectReader top(document, root,
                          {"prod_line", "prod_pn", "source", "min_range_m", "max_range_m", "beam_divergence_rad",
-                          "lidar_modes", "beam_intrinsics", "effects"});
+                          "lidar_modes", "beam_intrinsics", "effects", "fit"});  // fit: `lidartwin fit`'s notes
   SensorProfile profile;
   profile.name = std::filesystem::path(source).stem().string();
   profile.prod_line = read_string(top.at("prod_line", "a string such as \"OS-1-64\""), root.child("prod_line"));

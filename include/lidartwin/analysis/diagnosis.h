@@ -50,4 +50,13 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
 
 nlohmann::json diagnosis_json(const Diagnosis& diagnosis);
 
+// The effects the diagnosis can fit (registry names).
+std::vector<std::string> fittable_effects();
+// Fits `effects` one after the other, each given the chain with those before it; throws InputError
+// naming an effect that is not fittable or already in the chain.
+std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
+                                   const std::vector<std::string>& effects, const DiagnoseOptions& options = {});
+// The chain with the fitted effects inserted (before its range limits), in order.
+EffectChain chain_with(const EffectChain& chain, const std::vector<Candidate>& added);
+
 }  // namespace lidartwin

@@ -27,6 +27,8 @@ struct SensorProfile {
 // Loads profiles/<name>.json (or a path to a .json file). Unknown keys, missing keys and values
 // out of range throw InputError naming the file, the key and the allowed range.
 SensorProfile load_profile(std::string_view name_or_path);
+// The file load_profile reads for a name or path (throws InputError like it for a missing name).
+std::filesystem::path profile_file(std::string_view name_or_path);
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source);
 std::filesystem::path profiles_dir();  // <source>/profiles, or $LIDARTWIN_PROFILES
 std::vector<std::string> available_profiles();

@@ -1,0 +1,200 @@
+// Turning the flags that name a measured capture into its pixel table, for compare and fit.
+#include "cli/measured_inputs.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include "lidartwin/analysis/static_table.h"
+#include "lidartwin/error.h"
+#include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/pose/pose_source.h"
+#include "lidartwin/scene/scene.h"
+
+namespace lidartwin::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A `record` output directory stands for its capture, metadata and ground-truth poses.
+struct Inputs {
+  fs::path capture, metadata, pose;
+};
+Inputs resolve_inputs(const MeasuredFlags& flags) {
+  Inputs in{flags.capture, flags.metadata, flags.pose};
+  if (fs::is_directory(in.capture)) {
+    const fs::path dir = in.capture;
+    in.capture = dir / "capture.pcap";
+    if (in.metadata.empty()) in.metadata = dir / "metadata.json";
+    if (in.pose.empty() && fs::exists(dir / "poses.tum")) in.pose = dir / "poses.tum";
+  }
+  if (!fs::is_regular_file(in.capture)) throw InputError("--capture " + in.capture.string() + ": no such capture file");
+  if (in.metadata.empty()) throw InputError("give --metadata (the capture's sensor metadata JSON)");
+  if (flags.static_mode) return {in.capture, in.metadata, {}};
+  if (flags.scene.empty()) throw InputError("give --scene (the glTF scene of the measured place), or --static");
+  if (in.pose.empty()) {
+    throw InputError("give --pose (a TUM file: one line for a static sensor, or a trajectory)");
+  }
+  return in;
+}
+
+// One TUM line: a static sensor, any time. More: the trajectory, only over the times it covers.
+std::unique_ptr<PoseSource> load_measured_poses(const fs::path& path) {
+  Trajectory trajectory = [&] {
+    try {
+      return Trajectory::load_tum(path, /*loop=*/false);
+    } catch (const InputError& e) {
+      throw InputError(std::string("--pose: ") + e.what());
+    }
+  }();
+  if (trajectory.samples().size() == 1) return std::make_unique<StaticPose>(trajectory.samples().front().pose);
+  // Pad by a microsecond: pcap and TUM times are written to that precision.
+  const PoseSpan span{trajectory.start_s() - 1e-6, trajectory.start_s() + trajectory.duration_s() + 1e-6};
+  return std::make_unique<TrajectoryPoses>(std::move(trajectory), span);
+}
+
+// The capture beside the scene: its beams cast at each column's time and pose (corrected first,
+// with --refine-pose).
+struct SceneComparison {
+  PixelTable table;
+  std::optional<PoseRefinement> refinement;
+};
+SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const MeasuredCapture& capture,
+                            const EffectChain& chain, const SensorProfile& profile, Steps& steps) {
+  const std::unique_ptr<PoseSource> measured = load_measured_poses(in.pose);
+  steps.start("loading the scene");
+  const Scene scene = Scene::load(flags.scene);
+  steps.done();
+  SceneComparison out;
+  std::unique_ptr<PoseSource> corrected;
+  if (flags.refine_pose) {
+    steps.start("registering the measured points to the scene");
+    RefineOptions options;
+    options.max_range_m = profile.max_range_m;
+    out.refinement = refine_pose(capture, scene, *measured, flags.time_offset_s, options);
+    corrected = std::make_unique<CorrectedPoses>(*measured, out.refinement->correction);
+    steps.done();
+  }
+  const PoseSource& poses = corrected ? *corrected : *measured;
+  steps.start("casting the capture's beams and predicting every pixel");
+  WorkerPool pool(flags.threads);
+  PixelTableSetup setup{capture, scene, poses, flags.time_offset_s, chain, profile.max_range_m};
+  setup.progress = [&steps](double fraction) {
+    steps.progress("casting the capture's beams and predicting every pixel", fraction);
+  };
+  out.table = build_pixel_table(setup, pool);
+  steps.done();
+  if (std::ranges::none_of(out.table.ideal_range_m, [](float r) { return r > 0.0f; })) {
+    throw InputError(
+        fmt::format("--scene {} with --pose {}: no beam of the capture meets a surface of the scene (is "
+                    "the pose in the scene's world frame, Z up, and inside its bounds?)",
+                    flags.scene, in.pose.string()));
+  }
+  return out;
+}
+
+nlohmann::json refinement_json(const PoseRefinement& r) {
+  const Eigen::Vector3d t = r.correction.translation;
+  const Eigen::Quaterniond q = r.correction.rotation;
+  return {{"correction", {{"translation_m", {t.x(), t.y(), t.z()}}, {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
+          {"sensor_shift_m", {r.sensor_shift_m.x(), r.sensor_shift_m.y(), r.sensor_shift_m.z()}},
+          {"rotation_deg", r.rotation_deg},
+          {"rms_before_m", r.rms_before_m},
+          {"rms_after_m", r.rms_after_m},
+          {"points", r.points},
+          {"iterations", r.iterations}};
+}
+
+}  // namespace
+
+void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static) {
+  sub->add_option("--capture", flags.capture, "capture .pcap, or a `lidartwin record` output directory")->required();
+  sub->add_option("--metadata", flags.metadata, "the capture's sensor metadata JSON (FW 2.x/3.x)");
+  auto* scene = sub->add_option("--scene", flags.scene, "glTF scene (.glb/.gltf) of the measured place")
+                    ->check(CLI::ExistingFile);
+  auto* pose =
+      sub->add_option(
+             "--pose", flags.pose,
+             "TUM file of world_from_sensor: one line for a static sensor, or a trajectory on the capture's clock")
+          ->check(CLI::ExistingFile);
+  auto* offset =
+      sub->add_option("--time-offset", flags.time_offset_s, "seconds added to column timestamps to get pose times")
+          ->capture_default_str();
+  sub->add_option("--frames", flags.frames, "use at most this many frames (0 = all)")->capture_default_str();
+  sub->add_option("--threads", flags.threads, "threads (0 = all cores)")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
+  auto* refine = sub->add_flag("--refine-pose", flags.refine_pose,
+                               "register the measured points to the scene (point-to-plane) and correct the poses "
+                               "first; the correction is printed and in report.json");
+  if (!with_static) return;
+  sub->add_flag("--static", flags.static_mode,
+                "no scene: a motionless sensor's repeated frames, each pixel's temporal spread and detection against "
+                "the profile's prediction at its measured range")
+      ->excludes(scene)
+      ->excludes(pose)
+      ->excludes(offset)
+      ->excludes(refine);
+}
+
+bool Steps::tty() {
+  if (!checked_) {
+    tty_ = isatty(STDERR_FILENO) != 0;
+    checked_ = true;
+  }
+  return tty_;
+}
+
+void Steps::start(const char* what) {
+  if (tty()) std::fprintf(stderr, "\r%-60s", what);
+  started_ = std::chrono::steady_clock::now();
+}
+
+void Steps::progress(const char* what, double fraction) const {
+  if (!tty_) return;
+  constexpr int kWidth = 20;
+  const int filled = static_cast<int>(fraction * kWidth);
+  std::fprintf(stderr, "\r%-60s [%s%s] %3.0f %%", what, std::string(static_cast<size_t>(filled), '=').c_str(),
+               std::string(static_cast<size_t>(kWidth - filled), ' ').c_str(), 100.0 * fraction);
+}
+
+void Steps::done() const {
+  if (tty_) {
+    std::fprintf(stderr, " %.1f s\n",
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count());
+  }
+}
+
+Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const EffectChain& chain, Steps& steps) {
+  const Inputs in = resolve_inputs(flags);
+  Measured out;
+  steps.start("reading the capture");
+  out.capture = read_capture(in.capture, in.metadata, flags.frames);
+  steps.done();
+  if (flags.static_mode) {
+    out.table = build_static_table({out.capture, chain, profile.max_range_m});
+  } else {
+    SceneComparison compared = scene_table(flags, in, out.capture, chain, profile, steps);
+    out.table = std::move(compared.table);
+    out.refinement = compared.refinement;
+  }
+  const LidarDataFormat& format = out.capture.metadata.format;
+  out.inputs = {{"capture", in.capture.string()},
+                {"metadata", in.metadata.string()},
+                {"scene", flags.scene},
+                {"pose", in.pose.string()},
+                {"static", flags.static_mode},
+                {"profile", profile.name},
+                {"time_offset_s", flags.time_offset_s},
+                {"frames", out.capture.frames.size()},
+                {"lidar_mode", to_string(LidarMode{format.columns_per_frame, format.fps})},
+                {"udp_profile_lidar", to_string(format.udp_profile_lidar)}};
+  if (out.refinement) out.inputs["pose_refinement"] = refinement_json(*out.refinement);
+  return out;
+}
+
+}  // namespace lidartwin::cli

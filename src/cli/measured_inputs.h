@@ -1,0 +1,60 @@
+#pragma once
+// What `compare` and `fit` share: the flags naming a measured capture and where it was taken, and
+// turning them into the pixel table (the capture beside the scene, or static mode without one).
+#include <chrono>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "lidartwin/analysis/measured_capture.h"
+#include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/analysis/pose_refinement.h"
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/profile/sensor_profile.h"
+
+namespace lidartwin::cli {
+
+struct MeasuredFlags {
+  std::string capture;  // a pcap, or a `record` output directory
+  std::string metadata;
+  std::string scene;
+  std::string pose;
+  double time_offset_s = 0.0;
+  size_t frames = 0;
+  int threads = 0;
+  bool static_mode = false;
+  bool refine_pose = false;
+};
+
+// --capture, --metadata, --scene, --pose, --time-offset, --frames, --threads, --refine-pose, and
+// --static when `with_static`.
+void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static);
+
+// One line per step on a terminal ("reading the capture ... 0.1 s"), a bar while casting.
+class Steps {
+ public:
+  void start(const char* what);
+  void progress(const char* what, double fraction) const;
+  void done() const;
+
+ private:
+  bool tty_ = false;
+  bool checked_ = false;
+  std::chrono::steady_clock::time_point started_;
+  bool tty();
+};
+
+// The capture, its pixel table and, with --refine-pose, the correction; `inputs` describes them
+// for report.json. Throws InputError for every input that does not fit (see compare's tests).
+struct Measured {
+  MeasuredCapture capture;
+  PixelTable table;
+  std::optional<PoseRefinement> refinement;
+  nlohmann::json inputs;
+};
+Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const EffectChain& chain, Steps& steps);
+
+}  // namespace lidartwin::cli
