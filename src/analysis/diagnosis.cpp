@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <Eigen/Dense>
 #include <nlopt.hpp>
 
 #include "lidartwin/analysis/pixel_likelihood.h"
@@ -34,6 +36,7 @@ const std::vector<CandidateSpec>& candidate_specs() {
       {"range_walk", {{"walk_m", 0.0, 0.005}, {"retro_offset_m", 0.0, 0.01}}},
       {"incidence", {{"divergence_rad", 0.002, 0.001}, {"bias_factor", 0.0, 0.2}}},
       {"drift", {{"offset_m", 0.0, 0.005}, {"warmup_offset_m", 0.0, 0.01}, {"warmup_time_s", 1.0, 0.5}}},
+      {"dropout", {{"threshold_photons", 1.0, 1.0}, {"width", 0.3, 0.1}}},
   };
   return specs;
 }
@@ -141,21 +144,52 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Effect
   c.effect = spec.effect;
   c.catalogue = effect_catalogue(spec.effect).value_or("");
   c.delta_nll = base_nll - best;
-  const auto k = static_cast<double>(x.size());
-  c.delta_bic = 2.0 * c.delta_nll - k * std::log(static_cast<double>(rows.size()));
-  c.p_value = chi2_upper(2.0 * c.delta_nll, k);
+  const auto dof = static_cast<double>(x.size());
+  c.delta_bic = 2.0 * c.delta_nll - dof * std::log(static_cast<double>(rows.size()));
+  c.p_value = chi2_upper(2.0 * c.delta_nll, dof);
   c.effect_json = effect_json(x);
-  // 95 % intervals from the curvature of the NLL in each parameter (the others held).
-  for (size_t j = 0; j < x.size(); ++j) {
-    const double h = std::max(steps[j] * 0.05, 1e-9);
-    std::vector<double> up = x, down = x;
-    up[j] = std::min(x[j] + h, upper[j]);
-    down[j] = std::max(x[j] - h, lower[j]);
-    const double f0 = best, fu = objective(up), fd = objective(down);
-    const double hu = up[j] - x[j], hd = x[j] - down[j];
-    const double curvature =
-        hu > 0 && hd > 0 ? 2.0 * (fu * hd + fd * hu - f0 * (hu + hd)) / (hu * hd * (hu + hd)) : 0.0;
-    const double half = curvature > 0 ? 1.96 / std::sqrt(curvature) : std::numeric_limits<double>::infinity();
+  // 95 % intervals from the observed information: the NLL's Hessian by finite differences, inverted,
+  // so correlated parameters (a dropout's threshold and width) widen each other's intervals. A
+  // parameter at a bound gets a one-sided curvature and no cross terms.
+  const size_t n = x.size();
+  std::vector<double> h(n);
+  std::vector<uint8_t> inside(n);
+  for (size_t j = 0; j < n; ++j) {
+    h[j] = std::max(steps[j] * 0.05, 1e-9);
+    inside[j] = x[j] - h[j] >= lower[j] && x[j] + h[j] <= upper[j];
+  }
+  const auto at = [&](size_t j, double dj, size_t k, double dk) {
+    std::vector<double> v = x;
+    v[j] = std::clamp(v[j] + dj, lower[j], upper[j]);
+    if (k < n) v[k] = std::clamp(v[k] + dk, lower[k], upper[k]);
+    return objective(v);
+  };
+  Eigen::MatrixXd hessian = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (size_t j = 0; j < n; ++j) {
+    const double up = std::min(x[j] + h[j], upper[j]) - x[j], down = x[j] - std::max(x[j] - h[j], lower[j]);
+    const double fu = at(j, h[j], n, 0.0), fd = at(j, -h[j], n, 0.0);
+    const auto jj = static_cast<Eigen::Index>(j);
+    hessian(jj, jj) =
+        up > 0 && down > 0 ? 2.0 * (fu * down + fd * up - best * (up + down)) / (up * down * (up + down)) : 0.0;
+    for (size_t k = 0; k < j; ++k) {
+      if (!inside[j] || !inside[k]) continue;
+      const double cross =
+          (at(j, h[j], k, h[k]) - at(j, h[j], k, -h[k]) - at(j, -h[j], k, h[k]) + at(j, -h[j], k, -h[k])) /
+          (4.0 * h[j] * h[k]);
+      const auto kk = static_cast<Eigen::Index>(k);
+      hessian(jj, kk) = hessian(kk, jj) = cross;
+    }
+  }
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(hessian);
+  const bool definite = ldlt.info() == Eigen::Success && ldlt.isPositive() && hessian.diagonal().minCoeff() > 0.0;
+  const Eigen::MatrixXd covariance =
+      definite ? Eigen::MatrixXd(ldlt.solve(Eigen::MatrixXd::Identity(hessian.rows(), hessian.cols())))
+               : Eigen::MatrixXd(hessian.diagonal().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+  for (size_t j = 0; j < n; ++j) {
+    const auto jj = static_cast<Eigen::Index>(j);
+    const double variance = covariance(jj, jj);
+    const double half =
+        variance > 0 && hessian(jj, jj) > 0 ? 1.96 * std::sqrt(variance) : std::numeric_limits<double>::infinity();
     c.params.push_back({spec.free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half)});
   }
   return c;
