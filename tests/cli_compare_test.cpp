@@ -359,15 +359,16 @@ TEST_F(Compare, AHiddenWarmUpDriftShowsAsBiasFallingWithTime) {
   }
 }
 
-// fit: the profile with the missing effect added and fitted; compared again, the error falls to what
-// the model expects, and nothing fails.
-TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFalls) {
+// fit, then the waterfall: the profile with the missing effect added and fitted on the first 10
+// frames; compared with and without it on the 10 frames held out from the fit, the error falls to
+// what the model expects, and nothing fails.
+TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   const fs::path dir = out("fit");
   const nlohmann::json effect = {{"name", "drift"}, {"warmup_offset_m", 0.03}, {"warmup_time_s", 0.5}};
-  const nlohmann::json before = compare_hidden_effect(effect, "fit_e12", dir, /*diagnose=*/false);
+  compare_hidden_effect(effect, "fit_e12", dir, /*diagnose=*/false);
   const fs::path fitted = dir / "fitted.json";
   const std::string measured = " --capture " + (dir / "capture").string() + " --scene " + kHall;
-  const CliRun r = lidartwin("fit" + measured + " --profile os1-64 --add drift --out " + fitted.string());
+  const CliRun r = lidartwin("fit" + measured + " --frames 10 --profile os1-64 --add drift --out " + fitted.string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("drift (E12)"), std::string::npos) << r.out;
   const nlohmann::json profile = read_json(fitted);
@@ -376,18 +377,26 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFalls) {
   EXPECT_LE(ci[0].get<double>(), 0.03);
   EXPECT_GE(ci[1].get<double>(), 0.03);
 
-  const fs::path again = dir / "again";
-  ASSERT_EQ(
-      lidartwin("compare" + measured + " --profile " + fitted.string() + " --no-plots --out " + again.string()).code,
-      0);
-  const nlohmann::json after = read_json(again / "report.json");
-  const auto excess = [](const nlohmann::json& report) {
-    const auto& s = report["summary"];
-    return (s["nll_per_pixel"].get<double>() - s["nll_expected"].get<double>()) / s["nll_se"].get<double>();
+  const fs::path held_out = dir / "held_out";
+  const CliRun compared = lidartwin("compare" + measured + " --skip-frames 10 --profile os1-64 --profile " +
+                                    fitted.string() + " --no-plots --out " + held_out.string());
+  ASSERT_EQ(compared.code, 0) << compared.err;
+  EXPECT_NE(compared.out.find("the error across the profiles"), std::string::npos) << compared.out;
+  const nlohmann::json report = read_json(held_out / "report.json");
+  EXPECT_EQ(report["inputs"]["skipped_frames"], 10);
+  ASSERT_EQ(report["waterfall"].size(), 2u);
+  const auto excess = [](const nlohmann::json& w) {
+    return (w["nll_per_pixel"].get<double>() - w["nll_expected"].get<double>()) / w["nll_se"].get<double>();
   };
-  EXPECT_GT(excess(before), 100.0);
+  const auto& before = report["waterfall"][0];
+  const auto& after = report["waterfall"][1];
+  EXPECT_EQ(before["profile"], "os1-64");
+  EXPECT_GT(excess(before), 5.0);
+  EXPECT_GT(before["failing_regions"].get<size_t>(), 0u);
   EXPECT_LT(std::abs(excess(after)), 4.0);
-  EXPECT_TRUE(after["failing"].empty()) << after["failing"][0]["sentence"];
+  EXPECT_EQ(after["failing_regions"], 0);
+  EXPECT_LT(after["bias_rms_m"].get<double>(), before["bias_rms_m"].get<double>());
+  EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];  // the report is the last profile's
 
   const CliRun refused =
       lidartwin("fit" + measured + " --profile os1-64 --add beam_calibration --out " + (dir / "no.json").string());

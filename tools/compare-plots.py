@@ -128,6 +128,34 @@ def pit(report):
     return png(fig)
 
 
+def waterfall(report):
+    """The error across the compared profiles (compare --profile A --profile B ...), same pixels."""
+    steps = report.get("waterfall")
+    if not steps:
+        return ""
+    names = [w["profile"] for w in steps]
+    excess = [(w["nll_per_pixel"] - w["nll_expected"]) / w["nll_se"] if w["nll_se"] > 0 else 0 for w in steps]
+    fig, (left, middle, right) = plt.subplots(1, 3, figsize=(12, 3))
+    left.bar(names, excess, color="#4477aa")
+    left.axhline(0, color="gray", lw=1)
+    left.set_ylabel("NLL excess, standard errors")
+    middle.bar(names, [1000 * w["bias_rms_m"] for w in steps], color="#ee7733")
+    middle.set_ylabel("bias RMS over bins, mm")
+    right.bar(names, [w["failing_regions"] for w in steps], color="#cc3311")
+    right.set_ylabel("failing regions")
+    for ax in (left, middle, right):
+        ax.tick_params(axis="x", rotation=30, labelsize=8)
+    fig.suptitle("the error as the profile improves", fontsize=10)
+    fig.subplots_adjust(wspace=0.4)
+    rows = "".join("<tr><td>%s</td><td>%.4f</td><td>%+.1f</td><td>%.1f mm</td><td>%.2f</td><td>%.4f</td><td>%d</td></tr>"
+                   % (html.escape(w["profile"]), w["nll_per_pixel"], e, 1000 * w["bias_rms_m"],
+                      w["spread_ratio_median"], w["detection_log_loss"], w["failing_regions"])
+                   for w, e in zip(steps, excess))
+    return ("<table><tr><th>profile</th><th>NLL/pixel</th><th>excess (SE)</th><th>bias RMS</th>"
+            "<th>median spread ratio</th><th>detection log-loss</th><th>failing</th></tr>%s</table>%s"
+            % (rows, png(fig)))
+
+
 def page(directory, report):
     s = report["summary"]
     inputs = report.get("inputs", {})
@@ -139,6 +167,7 @@ def page(directory, report):
     failing = ("<table><tr><th>#</th><th>quantity</th><th>where and how</th><th>p (corrected)</th></tr>%s</table>"
                % rows) if rows else "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"])
     sections = [
+        ("The error across profiles", waterfall(report)),
         ("Where the model fails", failing),
         ("Spread misfit: range × incidence", heat_map(report, "range", "incidence", "spread", "spread part of the misfit")),
         ("Bias misfit: range × incidence", heat_map(report, "range", "incidence", "bias", "bias part of the misfit")),

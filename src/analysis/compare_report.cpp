@@ -1,6 +1,9 @@
 // report.json and pixels.npz: every number the comparison made, for scripts and for the plots.
 #include "lidartwin/analysis/compare_report.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "lidartwin/analysis/npz_writer.h"
 
 namespace lidartwin {
@@ -34,6 +37,53 @@ nlohmann::json bin_json(const BinMisfit& b) {
 }
 
 }  // namespace
+
+WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, const Misfit& misfit) {
+  WaterfallStep w;
+  w.profile = profile;
+  w.nll_per_pixel = misfit.summary.nll_per_pixel;
+  w.nll_expected = misfit.summary.nll_expected;
+  w.nll_se = misfit.summary.nll_se;
+  w.failing = misfit.failing.size();
+  double sum2 = 0.0;
+  std::vector<double> ratios;
+  for (const BinMisfit& b : misfit.bins) {
+    if (b.region.size() != 1 || b.inliers < 30) continue;
+    const double d = b.bias_measured_m - b.bias_predicted_m;
+    sum2 += d * d;
+    ratios.push_back(b.spread_ratio);
+  }
+  if (!ratios.empty()) {
+    w.bias_rms_m = std::sqrt(sum2 / static_cast<double>(ratios.size()));
+    std::nth_element(ratios.begin(), ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2), ratios.end());
+    w.spread_ratio_median = ratios[ratios.size() / 2];
+  }
+  double loss = 0.0;
+  size_t hits = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.ideal_range_m[i] <= 0.0f) continue;
+    const double p = std::clamp(static_cast<double>(t.p_detect[i]), 1e-6, 1.0 - 1e-6);
+    loss -= t.range_m[i] > 0.0f ? std::log(p) : std::log(1.0 - p);
+    ++hits;
+  }
+  w.detection_log_loss = hits > 0 ? loss / static_cast<double>(hits) : 0.0;
+  return w;
+}
+
+nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const WaterfallStep& w : steps) {
+    out.push_back({{"profile", w.profile},
+                   {"nll_per_pixel", w.nll_per_pixel},
+                   {"nll_expected", w.nll_expected},
+                   {"nll_se", w.nll_se},
+                   {"bias_rms_m", w.bias_rms_m},
+                   {"spread_ratio_median", w.spread_ratio_median},
+                   {"detection_log_loss", w.detection_log_loss},
+                   {"failing_regions", w.failing}});
+  }
+  return out;
+}
 
 nlohmann::json compare_report(const Misfit& misfit, const nlohmann::json& inputs, double alpha) {
   const MisfitSummary& s = misfit.summary;

@@ -65,23 +65,6 @@ double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const Eff
   return nll;
 }
 
-// The table with every pixel's prediction redone by another chain (what was measured unchanged).
-PixelTable repredicted(const PixelTable& t, const EffectChain& chain) {
-  PixelTable out = t;
-  for (size_t i = 0; i < t.size(); ++i) {
-    const IdealReturn ideal = t.ideal_of(i);
-    const Prediction p = chain.predict(ideal, t.context_of(i));
-    const RangeModel model = range_model(p, ideal.range_m, t.step_m[i], t.window_max_m[i]);
-    const uint8_t edge = out.edge[i], retro = out.retro[i];
-    const uint16_t material = out.material[i];
-    out.set_model(i, ideal, p, model);
-    out.edge[i] = edge;  // distances, not the flags set_model copies from the ideal return
-    out.retro[i] = retro;
-    out.material[i] = material;
-  }
-  return out;
-}
-
 // The chain with `effect` inserted before its range limits (what limits the window must see the
 // shifted range), or appended.
 EffectChain with_candidate(const EffectChain& chain, const nlohmann::json& effect) {

@@ -29,7 +29,7 @@ std::string size_histogram(const std::map<size_t, size_t>& sizes) {
 }  // namespace
 
 MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::filesystem::path& metadata_path,
-                             size_t max_frames) {
+                             size_t max_frames, size_t skip_frames) {
   MeasuredCapture capture;
   capture.metadata = load_metadata(metadata_path);
   const Metadata& metadata = capture.metadata;
@@ -47,7 +47,16 @@ MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::files
   PcapReader reader(pcap);
   std::map<size_t, size_t> sizes;
   const auto keep = [&](std::optional<BatchedFrame> frame) {
-    if (frame && (max_frames == 0 || capture.frames.size() < max_frames)) capture.frames.push_back(std::move(*frame));
+    if (!frame) return;
+    for (size_t m = 0; m < frame->scan.timestamp_ns.size(); ++m) {
+      const uint64_t stamp = frame->scan.timestamp_ns[m];
+      if (stamp != 0 && (capture.start_ns == 0 || stamp < capture.start_ns)) capture.start_ns = stamp;
+    }
+    if (capture.skipped_frames < skip_frames) {
+      ++capture.skipped_frames;
+      return;
+    }
+    if (max_frames == 0 || capture.frames.size() < max_frames) capture.frames.push_back(std::move(*frame));
   };
   while (auto datagram = reader.next()) {
     ++capture.datagrams;
@@ -57,6 +66,10 @@ MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::files
   }
   keep(batcher.flush());
   capture.counts = batcher.counts();
+  if (capture.frames.empty() && capture.skipped_frames > 0 && capture.skipped_frames == skip_frames) {
+    throw InputError(fmt::format("--capture {}: --skip-frames {} leaves no frame (the capture has {})", pcap.string(),
+                                 skip_frames, capture.skipped_frames));
+  }
   if (capture.frames.empty()) {
     const PacketFormat& format = batcher.format();
     std::string why = fmt::format(

@@ -196,6 +196,22 @@ ColumnContext PixelTable::context_of(size_t i) const {
   return c;
 }
 
+PixelTable repredicted(const PixelTable& t, const EffectChain& chain) {
+  PixelTable out = t;
+  for (size_t i = 0; i < t.size(); ++i) {
+    const IdealReturn ideal = t.ideal_of(i);
+    const Prediction p = chain.predict(ideal, t.context_of(i));
+    const RangeModel model = range_model(p, ideal.range_m, t.step_m[i], t.window_max_m[i]);
+    const uint8_t edge = out.edge[i], retro = out.retro[i];
+    const uint16_t material = out.material[i];
+    out.set_model(i, ideal, p, model);
+    out.edge[i] = edge;  // distances, not the flags set_model copies from the ideal return
+    out.retro[i] = retro;
+    out.material[i] = material;
+  }
+  return out;
+}
+
 PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   const Metadata& metadata = setup.capture.metadata;
   const LidarDataFormat& format = metadata.format;
@@ -233,10 +249,10 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   }
   // Effects that drift (E12) count time from the capture's first observed column: a capture does
   // not say when the sensor was powered on.
-  uint64_t first_stamp = std::numeric_limits<uint64_t>::max();
+  uint64_t first_stamp = setup.capture.start_ns;  // skipped frames included: held-out frames keep their time
   for (const ObservedColumn& oc : observed) {
-    first_stamp =
-        std::min(first_stamp, setup.capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)]);
+    const uint64_t stamp = setup.capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)];
+    if (first_stamp == 0 || stamp < first_stamp) first_stamp = stamp;
   }
   PixelTable table;
   table.resize(observed.size() * static_cast<size_t>(height));

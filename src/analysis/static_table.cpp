@@ -100,7 +100,7 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
                     min_returns, frames, near_limits));
   }
   // Drift (E12) counts from the capture's first column, as in the scene table.
-  uint64_t first_stamp = std::numeric_limits<uint64_t>::max();
+  uint64_t first_stamp = capture.start_ns != 0 ? capture.start_ns : std::numeric_limits<uint64_t>::max();
   for (const BatchedFrame& frame : capture.frames) {
     for (const uint64_t stamp : frame.scan.timestamp_ns) {
       if (stamp > 0) first_stamp = std::min(first_stamp, stamp);

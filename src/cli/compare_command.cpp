@@ -7,6 +7,7 @@
 #include <fstream>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -26,7 +27,7 @@ namespace fs = std::filesystem;
 
 struct CompareFlags {
   MeasuredFlags measured;
-  std::string profile;
+  std::vector<std::string> profiles;
   std::string out;
   double alpha = 0.01;
   uint64_t seed = 0;
@@ -62,24 +63,43 @@ void write_json(const fs::path& path, const nlohmann::json& json) {
 }
 
 int run_compare(const CompareFlags& flags) {
-  const SensorProfile profile = load_profile(flags.profile);
-  const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  std::vector<SensorProfile> profiles;
+  std::vector<EffectChain> chains;
+  for (const std::string& name : flags.profiles) {
+    profiles.push_back(load_profile(name));
+    chains.push_back(EffectChain::from_json(profiles.back().effects, "profile " + profiles.back().name + ": /effects"));
+  }
+  if (profiles.size() > 1 && flags.measured.static_mode) {
+    throw InputError("--static compares one --profile (its predictions are tied to the temporal means)");
+  }
   Steps steps;
-  const Measured measured = measure(flags.measured, profile, chain, steps);
-  const PixelTable& table = measured.table;
+  const Measured measured = measure(flags.measured, profiles.front(), chains.front(), steps);
   const std::string capture_name = measured.inputs["capture"].get<std::string>();
-  steps.start("scoring and binning");
-  const PixelScores scores = score_pixels(table, flags.seed);
   MisfitOptions options;
   options.alpha = flags.alpha;
   options.static_mode = flags.measured.static_mode;
-  const Misfit misfit = find_misfit(table, scores, measured.capture.frames.size(), options);
-  steps.done();
+  // Several profiles: each scored on the same pixels (the waterfall); the report is of the last.
+  std::vector<WaterfallStep> waterfall;
+  PixelTable table;
+  PixelScores scores;
+  Misfit misfit;
+  for (size_t k = 0; k < profiles.size(); ++k) {
+    steps.start(profiles.size() > 1 ? "scoring and binning, profile by profile" : "scoring and binning");
+    table = k == 0 ? measured.table : repredicted(measured.table, chains[k]);
+    scores = score_pixels(table, flags.seed);
+    misfit = find_misfit(table, scores, measured.capture.frames.size(), options);
+    waterfall.push_back(waterfall_step(profiles[k].name, table, misfit));
+    steps.done();
+  }
+  const SensorProfile& profile = profiles.back();
+  const EffectChain& chain = chains.back();
 
   fs::create_directories(flags.out);
   nlohmann::json inputs = measured.inputs;
   inputs["seed"] = flags.seed;
+  inputs["profile"] = profile.name;
   nlohmann::json report = compare_report(misfit, inputs, flags.alpha);
+  if (waterfall.size() > 1) report["waterfall"] = waterfall_json(waterfall);
   std::optional<Diagnosis> diagnosis;
   if (flags.diagnose) {
     steps.start("diagnosing: fitting each library effect the profile lacks");
@@ -130,6 +150,15 @@ int run_compare(const CompareFlags& flags) {
     }
     for (const Candidate& c : diagnosis->selected) std::printf("  selected: %s\n", c.effect.c_str());
   }
+  if (waterfall.size() > 1) {
+    std::printf("the error across the profiles (same pixels):\n  %-24s %12s %10s %10s %8s %10s %8s\n", "profile",
+                "NLL/pixel", "excess SE", "bias RMS", "spread", "det. loss", "failing");
+    for (const WaterfallStep& w : waterfall) {
+      std::printf("  %-24s %12.4f %+10.1f %8.1f mm %8.2f %10.4f %8zu\n", w.profile.c_str(), w.nll_per_pixel,
+                  w.nll_se > 0 ? (w.nll_per_pixel - w.nll_expected) / w.nll_se : 0.0, 1000 * w.bias_rms_m,
+                  w.spread_ratio_median, w.detection_log_loss, w.failing);
+    }
+  }
   std::string plots = "report.html not written (--no-plots)";
   if (flags.plots) {
     steps.start("plotting report.html");
@@ -145,7 +174,10 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   CLI::App* sub = app.add_subcommand(
       "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/pixels.npz");
   add_measured_options(sub, flags->measured, /*with_static=*/true);
-  sub->add_option("--profile", flags->profile, "profile whose effect chain is compared (name or .json)")->required();
+  sub->add_option("--profile", flags->profiles,
+                  "profile whose effect chain is compared (name or .json); several: a waterfall of the error "
+                  "across them, the report of the last")
+      ->required();
   sub->add_option("--out", flags->out, "output directory (created)")->required();
   sub->add_option("--alpha", flags->alpha, "significance level, after correction for the number of tests")
       ->check(CLI::Range(1e-12, 0.5))

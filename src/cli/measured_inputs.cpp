@@ -125,6 +125,9 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static)
       sub->add_option("--time-offset", flags.time_offset_s, "seconds added to column timestamps to get pose times")
           ->capture_default_str();
   sub->add_option("--frames", flags.frames, "use at most this many frames (0 = all)")->capture_default_str();
+  sub->add_option("--skip-frames", flags.skip_frames,
+                  "leave out this many frames at the start (e.g. those a fit used: compare on held-out frames)")
+      ->capture_default_str();
   sub->add_option("--threads", flags.threads, "threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
@@ -173,7 +176,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   const Inputs in = resolve_inputs(flags);
   Measured out;
   steps.start("reading the capture");
-  out.capture = read_capture(in.capture, in.metadata, flags.frames);
+  out.capture = read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
   steps.done();
   if (flags.static_mode) {
     out.table = build_static_table({out.capture, chain, profile.max_range_m});
@@ -191,6 +194,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
                 {"profile", profile.name},
                 {"time_offset_s", flags.time_offset_s},
                 {"frames", out.capture.frames.size()},
+                {"skipped_frames", out.capture.skipped_frames},
                 {"lidar_mode", to_string(LidarMode{format.columns_per_frame, format.fps})},
                 {"udp_profile_lidar", to_string(format.udp_profile_lidar)}};
   if (out.refinement) out.inputs["pose_refinement"] = refinement_json(*out.refinement);

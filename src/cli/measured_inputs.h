@@ -24,6 +24,7 @@ struct MeasuredFlags {
   std::string pose;
   double time_offset_s = 0.0;
   size_t frames = 0;
+  size_t skip_frames = 0;
   int threads = 0;
   bool static_mode = false;
   bool refine_pose = false;

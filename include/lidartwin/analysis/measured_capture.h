@@ -15,13 +15,16 @@ struct MeasuredCapture {
   std::vector<BatchedFrame> frames;  // in capture order; only frames with at least one packet
   size_t datagrams = 0;              // UDP datagrams in the capture
   ScanBatcher::Counts counts;        // what the batcher did with them
+  size_t skipped_frames = 0;         // frames read before `frames` (held out for another use)
+  uint64_t start_ns = 0;             // the first valid column timestamp of the capture, skipped frames included
 };
 
 // Reads up to max_frames frames (0: all). Packets of another sensor or session (init_id, prod_sn
 // other than the metadata's) are left out as the SDK leaves them out. Throws InputError naming the
 // capture and the metadata when no datagram is a lidar packet of the metadata's format (a capture
 // of another mode or profile, or of another sensor), or the metadata's lidar output is off.
+// skip_frames: frames left out at the start (a fit's frames, when comparing on held-out ones).
 MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::filesystem::path& metadata_path,
-                             size_t max_frames = 0);
+                             size_t max_frames = 0, size_t skip_frames = 0);
 
 }  // namespace lidartwin

@@ -84,4 +84,9 @@ struct PixelTableSetup {
 // time lies outside the pose source's span, or when the chain predicts no spread for returns.
 PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool);
 
+// The same table with every pixel's prediction redone by another chain; what was measured, the
+// ideal returns and the features are unchanged. (Not for static tables: their predictions are
+// adjusted for the temporal mean.)
+PixelTable repredicted(const PixelTable& table, const EffectChain& chain);
+
 }  // namespace lidartwin
