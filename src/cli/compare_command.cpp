@@ -80,12 +80,17 @@ int run_compare(const CompareFlags& flags) {
   options.static_mode = flags.measured.static_mode;
   // Several profiles: each scored on the same pixels (the waterfall); the report is of the last.
   std::vector<WaterfallStep> waterfall;
-  PixelTable table;
+  PixelTable other;  // a later profile's predictions (the first profile's table is not copied)
+  const PixelTable* current = &measured.table;
   PixelScores scores;
   Misfit misfit;
   for (size_t k = 0; k < profiles.size(); ++k) {
     steps.start(profiles.size() > 1 ? "scoring and binning, profile by profile" : "scoring and binning");
-    table = k == 0 ? measured.table : repredicted(measured.table, chains[k]);
+    if (k > 0) {
+      other = repredicted(measured.table, chains[k]);
+      current = &other;
+    }
+    const PixelTable& table = *current;
     scores = score_pixels(table, flags.seed);
     misfit = find_misfit(table, scores, measured.capture.frames.size(), options);
     waterfall.push_back(waterfall_step(profiles[k].name, table, misfit));
@@ -93,6 +98,7 @@ int run_compare(const CompareFlags& flags) {
   }
   const SensorProfile& profile = profiles.back();
   const EffectChain& chain = chains.back();
+  const PixelTable& table = *current;
 
   fs::create_directories(flags.out);
   nlohmann::json inputs = measured.inputs;
