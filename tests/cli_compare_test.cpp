@@ -423,6 +423,61 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   }
 }
 
+// The fitted values of a selected effect's parameters, checked against the truth within `tolerance`
+// (relative).
+void expect_fitted(const nlohmann::json& candidate, const std::vector<std::pair<std::string, double>>& truths,
+                   double tolerance) {
+  for (const auto& [name, truth] : truths) {
+    const auto& p = candidate["params"][name];
+    EXPECT_NEAR(p["value"].get<double>(), truth, tolerance * std::abs(truth)) << name << " " << p.dump();
+  }
+}
+
+// E2 and E3, each hidden alone: named first and fitted.
+TEST_F(Compare, TheDiagnosisNamesHiddenSignalDependentPrecisionAndRangeWalk) {
+  const nlohmann::json e2 =
+      compare_hidden_effect({{"name", "signal_precision"}, {"k_m", 0.2}}, "e2", out("e2"))["diagnosis"];
+  ASSERT_FALSE(e2["selected"].empty()) << e2.dump(1);
+  EXPECT_EQ(e2["selected"][0]["effect"], "signal_precision");
+  EXPECT_EQ(e2["selected"][0]["catalogue"], "E2");
+  expect_fitted(e2["selected"][0], {{"k_m", 0.2}}, 0.02);
+
+  const nlohmann::json e3 =
+      compare_hidden_effect({{"name", "range_walk"}, {"walk_m", 0.01}}, "e3", out("e3"))["diagnosis"];
+  ASSERT_FALSE(e3["selected"].empty()) << e3.dump(1);
+  EXPECT_EQ(e3["selected"][0]["effect"], "range_walk");
+  EXPECT_EQ(e3["selected"][0]["catalogue"], "E3");
+  expect_fitted(e3["selected"][0], {{"walk_m", 0.01}}, 0.05);
+}
+
+// Two hidden effects at once (E4 and E12): the stepwise search keeps both, and nothing else.
+TEST_F(Compare, TheDiagnosisFindsTwoHiddenEffectsTogether) {
+  const fs::path dir = out("pair");
+  const fs::path capture = dir / "capture";
+  nlohmann::json profile = read_json(kSource + "/profiles/os1-64.json");
+  auto& effects = profile["effects"];
+  auto limits = std::find_if(effects.begin(), effects.end(), [](const auto& e) { return e["name"] == "range_limits"; });
+  limits = effects.insert(limits, nlohmann::json{{"name", "incidence"}});
+  effects.insert(limits + 1, nlohmann::json{{"name", "drift"}, {"warmup_offset_m", 0.03}, {"warmup_time_s", 0.5}});
+  const fs::path path = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_pair.json");
+  std::ofstream(path) << profile.dump();
+  const CliRun recorded = lidartwin("record --profile " + path.string() + " --scene " + kHall + " --trajectory " +
+                                    kHallPose + " --frames 20 --seed 5 --out " + capture.string());
+  ASSERT_EQ(recorded.code, 0) << recorded.err;
+  const CliRun r = lidartwin("compare --capture " + capture.string() + " --scene " + kHall +
+                             " --profile os1-64 --no-plots --diagnose --out " + (dir / "report").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json diagnosis = read_json(dir / "report" / "report.json")["diagnosis"];
+  ASSERT_EQ(diagnosis["selected"].size(), 2u) << diagnosis.dump(1);
+  std::set<std::string> found;
+  for (const auto& c : diagnosis["selected"]) found.insert(c["effect"].get<std::string>());
+  EXPECT_EQ(found, (std::set<std::string>{"incidence", "drift"}));
+  for (const auto& c : diagnosis["selected"]) {
+    if (c["effect"] == "drift") expect_fitted(c, {{"warmup_offset_m", 0.03}, {"warmup_time_s", 0.5}}, 0.05);
+    if (c["effect"] == "incidence") expect_fitted(c, {{"divergence_rad", 0.00227}}, 0.05);
+  }
+}
+
 // The null case: the profile that made the capture; no candidate improves BIC.
 TEST_F(Compare, TheDiagnosisFindsNothingMissingWhenNothingIs) {
   const fs::path dir = out("null_diagnosis");
