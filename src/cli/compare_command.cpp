@@ -13,7 +13,7 @@
 
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
-#include "cli/serve_inputs.h"
+#include "cli/plot_script.h"
 #include "lidartwin/analysis/compare_report.h"
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
@@ -35,26 +35,6 @@ struct CompareFlags {
   bool plots = true;
   bool diagnose = false;
 };
-
-// report.html comes from tools/compare-plots.py (Debian's python3 with numpy and matplotlib).
-// Returns what happened, for the last lines of the run.
-std::string write_plots(const fs::path& out) {
-  const fs::path script = source_dir() / "tools" / "compare-plots.py";
-  if (!fs::exists(script))
-    return "report.html not written: " + script.string() + " not found (set LIDARTWIN_SOURCE_DIR)";
-  const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-  const fs::path log = out / "plots.log";
-  const std::string command = python + " '" + script.string() + "' '" + out.string() + "' >'" + log.string() + "' 2>&1";
-  const int status = std::system(command.c_str());
-  if (status != 0) {
-    return "report.html not written: " + script.filename().string() +
-           " failed (needs python3 with numpy and "
-           "matplotlib: tools/setup installs them; see " +
-           log.string() + ")";
-  }
-  fs::remove(log);
-  return "wrote " + (out / "report.html").string();
-}
 
 void write_json(const fs::path& path, const nlohmann::json& json) {
   std::ofstream out(path);
@@ -168,7 +148,7 @@ int run_compare(const CompareFlags& flags) {
   std::string plots = "report.html not written (--no-plots)";
   if (flags.plots) {
     steps.start("plotting report.html");
-    plots = write_plots(flags.out);
+    plots = run_plot_script("compare-plots.py", flags.out, "report.html");
     steps.done();
   }
   std::printf("wrote %s/report.json and %s/pixels.npz; %s\n", flags.out.c_str(), flags.out.c_str(), plots.c_str());
