@@ -169,6 +169,22 @@ TEST_F(RecordGeometry, MovingSensorUsesEachColumnsPose) {
   EXPECT_NEAR((poses[1].translation - pose_at(0.1).translation).norm(), 0.0, 1e-6);
   EXPECT_NEAR(poses[1].rotation.angularDistance(pose_at(0.1).rotation), 0.0, 1e-6);
   EXPECT_NEAR((poses[2].translation - pose_at(0.2).translation).norm(), 0.0, 1e-6);
+  // Per column: the pose each column was cast from, at its timestamp (the packets' clock).
+  const auto columns = test::read_poses(out / "column_poses.tum");
+  ASSERT_EQ(columns.size(), 2u * 1024u);
+  const auto capture = test::decode_capture(out);
+  size_t checked = 0;
+  for (const auto& [frame_id, scan] : capture.frames) {
+    for (int m = 0; m < scan.width; m += 97) {
+      const auto& truth =
+          columns[static_cast<size_t>(frame_id - capture.frames.begin()->first) * 1024 + static_cast<size_t>(m)];
+      EXPECT_NEAR(truth.time_s, static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9, 1e-9);
+      EXPECT_NEAR((truth.translation - pose_at(truth.time_s).translation).norm(), 0.0, 1e-6) << m;
+      EXPECT_NEAR(truth.rotation.angularDistance(pose_at(truth.time_s).rotation), 0.0, 1e-6) << m;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 10u);
 }
 
 }  // namespace

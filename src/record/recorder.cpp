@@ -90,7 +90,7 @@ void record(const Recording& recording, const std::function<void(int frames_done
   CaptureWriter capture(model, recording.out_dir / "capture.pcap");
   std::array<EncodedFrame, 2> buffers{model.make_frame_buffer(), model.make_frame_buffer()};
   std::future<void> writing;
-  std::vector<StampedPose> poses;
+  std::vector<StampedPose> poses, column_poses;
   for (int k = 0; k < recording.frames; ++k) {
     const auto frame = static_cast<uint64_t>(k);
     EncodedFrame& encoded = buffers[frame % 2];
@@ -99,6 +99,12 @@ void record(const Recording& recording, const std::function<void(int frames_done
     writing = std::async(std::launch::async, [&capture, &encoded, frame] { capture.write_frame(frame, encoded); });
     const double frame_start_s = model.clock().column_pose_time_s(frame, 0);
     poses.push_back({frame_start_s, recording.poses.at(frame_start_s)});
+    // Ground truth per column: the very pose each observed column was cast from, at the column's
+    // timestamp (the packets' clock, in seconds).
+    for (size_t m = 0; m < encoded.columns.observed.size(); ++m) {
+      if (!encoded.columns.observed[m]) continue;
+      column_poses.push_back({static_cast<double>(encoded.scan.timestamp_ns[m]) * 1e-9, encoded.columns.poses[m]});
+    }
     progress(k + 1);
   }
   if (writing.valid()) writing.get();
@@ -109,6 +115,7 @@ void record(const Recording& recording, const std::function<void(int frames_done
   capture.write_imu_until(model.clock().origin_ns +
                           model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
   write_tum(recording.out_dir / "poses.tum", poses);
+  write_tum(recording.out_dir / "column_poses.tum", column_poses);
 }
 
 }  // namespace lidartwin
