@@ -76,12 +76,6 @@ EffectChain with_candidate(const EffectChain& chain, const nlohmann::json& effec
   return EffectChain::from_json(document, "diagnosis candidate");
 }
 
-double chi2_upper(double x, double dof) {
-  if (x <= 0.0) return 1.0;
-  const double v = 2.0 / (9.0 * dof);
-  return 1.0 - normal_cdf((std::cbrt(x / dof) - (1.0 - v)) / std::sqrt(v));
-}
-
 Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& base, double base_nll,
               const CandidateSpec& spec) {
   // Bounds from the effect's own parameter table.
@@ -129,7 +123,7 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Effect
   c.delta_nll = base_nll - best;
   const auto dof = static_cast<double>(x.size());
   c.delta_bic = 2.0 * c.delta_nll - dof * std::log(static_cast<double>(rows.size()));
-  c.p_value = chi2_upper(2.0 * c.delta_nll, dof);
+  c.p_value = 1.0 - chi2_cdf(2.0 * c.delta_nll, dof);
   c.effect_json = effect_json(x);
   // 95 % intervals from the observed information: the NLL's Hessian by finite differences, inverted,
   // so correlated parameters (a dropout's threshold and width) widen each other's intervals. A

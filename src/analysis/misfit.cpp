@@ -181,14 +181,6 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
 
 double two_sided_normal(double t) { return std::erfc(std::abs(t) / std::sqrt(2.0)); }
 
-// Chi-square CDF by the Wilson-Hilferty cube-root normal approximation (good for dof >= 10 and
-// fine for ranking below that).
-double chi2_cdf(double x, double dof) {
-  if (x <= 0.0) return 0.0;
-  const double v = 2.0 / (9.0 * dof);
-  return normal_cdf((std::cbrt(x / dof) - (1.0 - v)) / std::sqrt(v));
-}
-
 // Two-sided p of observing k events where lambda are expected (Poisson; normal beyond 200).
 double poisson_two_sided(double k, double lambda) {
   if (lambda <= 0.0) return k > 0.0 ? 0.0 : 1.0;

@@ -54,6 +54,12 @@ double normal_interval(double a, double b) {
   return 1.0 - normal_cdf(a) - (1.0 - normal_cdf(b));
 }
 
+double chi2_cdf(double x, double dof) {
+  if (x <= 0.0) return 0.0;
+  const double v = 2.0 / (9.0 * dof);
+  return normal_cdf((std::cbrt(x / dof) - (1.0 - v)) / std::sqrt(v));
+}
+
 RangeModel range_model(const Prediction& prediction, double ideal_range_m, double wire_step_m, double reach_m) {
   RangeModel m;
   m.mean_m = ideal_range_m + prediction.bias_m;

@@ -153,7 +153,7 @@ void PixelTable::set_measured(size_t i, uint32_t f, const Scan& scan, int m, int
   azimuth_deg[i] = static_cast<float>(360.0 - 360.0 * m / scan.width);  // encoder angle (7.1)
 }
 
-void PixelTable::set_model(size_t i, const IdealReturn& ideal, const Prediction& prediction, const RangeModel& model) {
+void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
   ideal_range_m[i] = ideal.range_m;
   incidence_deg[i] =
       ideal.hit() ? static_cast<float>(std::acos(std::clamp(static_cast<double>(ideal.cos_incidence), 0.0, 1.0)) *
@@ -164,6 +164,9 @@ void PixelTable::set_model(size_t i, const IdealReturn& ideal, const Prediction&
   material[i] = static_cast<uint16_t>(ideal.hit() ? ideal.material_id : 0xFFFF);
   retro[i] = ideal.retroreflective;
   edge[i] = ideal.edge;
+}
+
+void PixelTable::set_prediction(size_t i, const Prediction& prediction, const RangeModel& model) {
   predicted_bias_m[i] = static_cast<float>(prediction.bias_m);
   predicted_sigma_m[i] = static_cast<float>(model.sigma_m);
   p_detect[i] = static_cast<float>(model.p_detect);
@@ -202,12 +205,7 @@ PixelTable repredicted(const PixelTable& t, const EffectChain& chain) {
     const IdealReturn ideal = t.ideal_of(i);
     const Prediction p = chain.predict(ideal, t.context_of(i));
     const RangeModel model = range_model(p, ideal.range_m, t.step_m[i], t.window_max_m[i]);
-    const uint8_t edge = out.edge[i], retro = out.retro[i];
-    const uint16_t material = out.material[i];
-    out.set_model(i, ideal, p, model);
-    out.edge[i] = edge;  // distances, not the flags set_model copies from the ideal return
-    out.retro[i] = retro;
-    out.material[i] = material;
+    out.set_prediction(i, p, model);
   }
   return out;
 }
@@ -298,7 +296,8 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
         const RangeModel model = range_model(prediction, hit.range_m, context.range_step_m, reach);
         if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
         table.set_measured(p, oc.frame, scan, m, r);
-        table.set_model(p, hit, prediction, model);
+        table.set_ideal(p, hit);
+        table.set_prediction(p, prediction, model);
       }
     }
     report_progress();

@@ -129,7 +129,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         const Prediction prediction = setup.chain.predict(ideal, column_context);
         const RangeModel model = range_model(prediction, ideal.range_m, context.range_step_m, reach);
         t.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
-        t.set_model(p, ideal, prediction, model);
+        t.set_ideal(p, ideal);
+        t.set_prediction(p, prediction, model);
         t.material[p] = 0xFFFF;  // no scene: no material; incidence, edges and retros unknown (not binned)
         t.edge[p] = t.retro[p] = PixelTable::kFarPixels;
         t.predicted_bias_m[p] = 0.0f;  // the mean is the data's own

@@ -144,16 +144,10 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static)
       ->excludes(refine);
 }
 
-bool Steps::tty() {
-  if (!checked_) {
-    tty_ = isatty(STDERR_FILENO) != 0;
-    checked_ = true;
-  }
-  return tty_;
-}
+Steps::Steps() : tty_(isatty(STDERR_FILENO) != 0) {}
 
 void Steps::start(const char* what) {
-  if (tty()) std::fprintf(stderr, "\r%-60s", what);
+  if (tty_) std::fprintf(stderr, "\r%-60s", what);
   started_ = std::chrono::steady_clock::now();
 }
 

@@ -37,15 +37,14 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static)
 // One line per step on a terminal ("reading the capture ... 0.1 s"), a bar while casting.
 class Steps {
  public:
+  Steps();  // shows anything only when stderr is a terminal
   void start(const char* what);
   void progress(const char* what, double fraction) const;
   void done() const;
 
  private:
-  bool tty_ = false;
-  bool checked_ = false;
+  bool tty_;
   std::chrono::steady_clock::time_point started_;
-  bool tty();
 };
 
 // The capture, its pixel table and, with --refine-pose, the correction; `inputs` describes them

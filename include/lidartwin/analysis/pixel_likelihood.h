@@ -55,5 +55,8 @@ NllMoments expected_nll(const RangeModel& model);
 // Standard normal CDF and the probability of [a, b] under it, accurate in both tails.
 double normal_cdf(double x);
 double normal_interval(double a, double b);
+// Chi-square CDF by the Wilson-Hilferty cube-root normal approximation (good for dof >= 10 and
+// fine for ranking below that): the tests of the bins' spread, the PIT and the diagnosis' LRT.
+double chi2_cdf(double x, double dof);
 
 }  // namespace lidartwin

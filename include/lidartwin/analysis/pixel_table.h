@@ -64,8 +64,10 @@ struct PixelTable {
   void resize(size_t n);
   // Pixel i: where it is (row r of measurement id m of frame f) and what the scan measured there.
   void set_measured(size_t i, uint32_t f, const Scan& scan, int m, int r);
-  // Pixel i: the ideal return it stands for, and the chain's prediction for it.
-  void set_model(size_t i, const IdealReturn& ideal, const Prediction& prediction, const RangeModel& model);
+  // Pixel i: the ideal return it stands for (edge and retro as the return's own flags, which the
+  // scene table then turns into distances), and the chain's prediction for it.
+  void set_ideal(size_t i, const IdealReturn& ideal);
+  void set_prediction(size_t i, const Prediction& prediction, const RangeModel& model);
 };
 
 struct PixelTableSetup {
