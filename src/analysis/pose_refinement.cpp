@@ -26,10 +26,6 @@ struct Sample {
   double range_mm;
 };
 
-Pose compose(const Pose& a, const Pose& b) {
-  return {a.rotation * b.rotation, a.rotation * b.translation + a.translation};
-}
-
 std::vector<Sample> sample_returns(const MeasuredCapture& capture, const RefineOptions& options) {
   const size_t frames = std::min(options.max_frames, capture.frames.size());
   size_t returns = 0;
@@ -55,7 +51,7 @@ std::vector<Sample> sample_returns(const MeasuredCapture& capture, const RefineO
 
 }  // namespace
 
-Pose CorrectedPoses::at(double time_s) const { return compose(correction_, base_.at(time_s)); }
+Pose CorrectedPoses::at(double time_s) const { return correction_ * base_.at(time_s); }
 
 PoseRefinement refine_pose(const MeasuredCapture& capture, const Scene& scene, const PoseSource& poses,
                            double time_offset_s, const RefineOptions& options) {
@@ -143,13 +139,13 @@ PoseRefinement refine_pose(const MeasuredCapture& capture, const Scene& scene, c
         angle > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle)) : Eigen::Quaterniond::Identity();
     // p -> R (p - c) + c + tau, composed on the left of the correction so far.
     const Pose update{rotation, centre - rotation * centre + step.tail<3>()};
-    correction = compose(update, correction);
+    correction = update * correction;
     correction.rotation.normalize();
     if (angle < 1e-9 && step.tail<3>().norm() < 1e-7) break;
   }
   result.correction = correction;
   const Pose first = poses.at(samples.front().time_s + time_offset_s);
-  result.sensor_shift_m = compose(correction, first).translation - first.translation;
+  result.sensor_shift_m = (correction * first).translation - first.translation;
   result.rotation_deg = Eigen::AngleAxisd(correction.rotation).angle() * 180.0 / std::numbers::pi;
   return result;
 }

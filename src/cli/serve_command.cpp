@@ -21,7 +21,9 @@
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose_source.h"
+#include "lidartwin/rig/pose_receiver.h"
 #include "lidartwin/rig/virtual_sensor.h"
 #include "lidartwin/scene/scene.h"
 
@@ -46,11 +48,12 @@ int report_bind_error(const BindError& error) {
 // Runs until SIGINT/SIGTERM: the signal stops the sensor's streamer, which leaves the io_context
 // without work, so run() returns; then the sensor's HTTP server and stats stop. `signals` was made
 // before the sensor started answering, so a signal sent as soon as it answers is not lost.
-int run_daemon(asio::io_context& io, asio::signal_set& signals, VirtualSensor& sensor) {
-  signals.async_wait([&sensor](const asio::error_code& error, int signal_number) {
+int run_daemon(asio::io_context& io, asio::signal_set& signals, VirtualSensor& sensor, PoseReceiver* receiver) {
+  signals.async_wait([&sensor, receiver](const asio::error_code& error, int signal_number) {
     if (error) return;
     spdlog::info("serve: {} received, stopping", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
     sensor.stop_streaming();
+    if (receiver) receiver->stop();
   });
   // The send clock's wake-ups should not be rounded up by the default 50 us timer slack.
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
@@ -92,7 +95,37 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorProfile& pr
   setup.max_range_m = profile.max_range_m;
   setup.chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   setup.seed = flags.seed;
+  setup.mounting = mounting(flags);
+  setup.per_column_poses = flags.per_column_poses;
+  if (live(flags)) {
+    setup.streamer.cast_ahead_ms = flags.cast_ahead_ms;
+    setup.streamer.withhold_unposed = live_pose_options(flags).timeout == PoseTimeout::kStandby;
+  }
   return setup;
+}
+
+// The motion: poses arriving live, or a trajectory (--pose, --trajectory, the default flight).
+struct Motion {
+  std::unique_ptr<LivePoses> live;
+  std::unique_ptr<TrajectoryPoses> trajectory;
+  std::string description;
+  const PoseSource& poses() const { return live ? static_cast<const PoseSource&>(*live) : *trajectory; }
+};
+
+Motion load_motion(const ServeFlags& flags, int64_t epoch_steady_ns) {
+  Motion motion;
+  if (live(flags)) {
+    if (!flags.pose.empty() || !flags.trajectory.empty()) {
+      throw InputError("--live-poses/--pose-udp: the poses arrive live; leave out --pose and --trajectory");
+    }
+    motion.live = std::make_unique<LivePoses>(live_pose_options(flags), epoch_steady_ns);
+    motion.description = "live poses";
+    return motion;
+  }
+  Trajectory trajectory = load_trajectory(flags);
+  motion.description = fmt::format("trajectory of {:.1f} s", trajectory.duration_s());
+  motion.trajectory = std::make_unique<TrajectoryPoses>(std::move(trajectory));
+  return motion;
 }
 
 int64_t steady_now_ns() {
@@ -107,18 +140,21 @@ int serve(const ServeFlags& flags) {
   const bool realtime = send_clock_can_be_realtime();
   VirtualSensorSetup setup = sensor_setup(flags, profile, address, realtime ? 0 : 5);
   const auto scene_file = scene_path(flags);
-  const Trajectory trajectory = load_trajectory(flags);
-  const TrajectoryPoses poses(trajectory);
   const Scene scene = Scene::load(scene_file);
-  spdlog::info("serve: {} ({}) in {} ({} triangles), trajectory of {:.1f} s", profile.prod_line, profile.name,
-               scene_file.string(), scene.triangle_count(), trajectory.duration_s());
+  // The rig's time zero: a trajectory starts here, live poses are placed on it as they arrive.
+  const int64_t epoch_steady_ns = steady_now_ns();
+  const Motion motion = load_motion(flags, epoch_steady_ns);
+  spdlog::info("serve: {} ({}) in {} ({} triangles), {}", profile.prod_line, profile.name, scene_file.string(),
+               scene.triangle_count(), motion.description);
 
   asio::io_context io;
   // From here SIGINT/SIGTERM are caught (and held until run_daemon waits for them): a client or
   // supervisor that stops the daemon as soon as it answers gets a clean stop, not exit 143.
   asio::signal_set signals(io, SIGINT, SIGTERM);
   WorkerPool pool(flags.threads, setup.streamer.render_nice);
-  const RigContext rig{io, scene, poses, pool, steady_now_ns()};
+  const RigContext rig{io, scene, motion.poses(), pool, epoch_steady_ns, motion.live.get()};
+  std::unique_ptr<PoseReceiver> receiver;
+  if (motion.live) receiver = std::make_unique<PoseReceiver>(io, *motion.live, pose_udp_endpoint(flags));
   std::unique_ptr<VirtualSensor> sensor;
   try {
     sensor = std::make_unique<VirtualSensor>(rig, std::move(setup));
@@ -133,12 +169,13 @@ int serve(const ServeFlags& flags) {
   } catch (const BindError& e) {
     return report_bind_error(e);
   }
+  if (receiver) receiver->start();
   spdlog::info("serve: sensor {} sn {} answering on http://{}:{}/api/v1/", sensor->sensor().identity().prod_line,
                sensor->sensor().identity().prod_sn, flags.address, sensor->http().port());
   raise_send_clock_priority();
   spdlog::info("serve: send clock runs {}",
                realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
-  return run_daemon(io, signals, *sensor);
+  return run_daemon(io, signals, *sensor, receiver.get());
 }
 
 void setup_serve(CLI::App& app, std::function<int()>& run) {
@@ -168,6 +205,31 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--spin-us", flags->spin_us, "wake this early and spin to each packet's deadline (0 = sleep only)")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
+  sub->add_flag("--live-poses", flags->live_poses,
+                "poses arrive live: POST /lidartwin/v1/pose (and UDP with --pose-udp); docs/live-poses.md")
+      ->excludes(trajectory);
+  sub->add_option("--pose-udp", flags->pose_udp, "[ADDR:]PORT: listen for UDP pose messages (implies --live-poses)")
+      ->excludes(trajectory);
+  sub->add_option("--pose-clock", flags->pose_clock, "the clock of pose times: sender, monotonic, realtime, tai")
+      ->check(CLI::IsMember({"sender", "monotonic", "realtime", "tai"}))
+      ->capture_default_str();
+  sub->add_option("--pose-extrapolate-ms", flags->pose_extrapolate_ms,
+                  "extrapolate live poses up to this far past the newest")
+      ->check(CLI::Range(0.0, 10'000.0))
+      ->capture_default_str();
+  sub->add_option("--pose-timeout", flags->pose_timeout,
+                  "past the extrapolation: hold (freeze the pose), invalid (status 0), standby (send nothing)")
+      ->check(CLI::IsMember({"hold", "invalid", "standby"}))
+      ->capture_default_str();
+  sub->add_option("--cast-ahead-ms", flags->cast_ahead_ms,
+                  "with live poses: cast each packet this long before it is due (less: fresher poses, "
+                  "more: safer on a busy host)")
+      ->check(CLI::Range(0.1, 1000.0))
+      ->capture_default_str();
+  sub->add_option("--mount", flags->mount,
+                  "the sensor on the vehicle whose poses arrive (vehicle_from_sensor \"x y z qx qy qz qw\")");
+  sub->add_flag("!--no-per-column-poses", flags->per_column_poses,
+                "cast every column of a frame from the frame's first pose (shows what motion distortion does)");
   sub->add_option("--log-level", flags->log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();

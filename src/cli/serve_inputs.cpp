@@ -1,5 +1,6 @@
 #include "cli/serve_inputs.h"
 
+#include <charconv>
 #include <cstdlib>
 
 #include <spdlog/spdlog.h>
@@ -46,6 +47,47 @@ Trajectory load_trajectory(const ServeFlags& flags) {
   spdlog::warn("serve: no --trajectory or --pose for scene {}: the sensor stands still at the world origin",
                flags.scene);
   return Trajectory::constant(Pose{});
+}
+
+bool live(const ServeFlags& flags) { return flags.live_poses || !flags.pose_udp.empty(); }
+
+LivePoseOptions live_pose_options(const ServeFlags& flags) {
+  LivePoseOptions options;
+  const auto clock = parse_pose_clock(flags.pose_clock);
+  if (!clock) throw InputError("--pose-clock " + flags.pose_clock + ": must be sender, monotonic, realtime or tai");
+  const auto timeout = parse_pose_timeout(flags.pose_timeout);
+  if (!timeout) throw InputError("--pose-timeout " + flags.pose_timeout + ": must be hold, invalid or standby");
+  options.clock = *clock;
+  options.timeout = *timeout;
+  options.max_extrapolation_s = flags.pose_extrapolate_ms * 1e-3;
+  return options;
+}
+
+std::optional<asio::ip::udp::endpoint> pose_udp_endpoint(const ServeFlags& flags) {
+  if (flags.pose_udp.empty()) return std::nullopt;
+  const std::string& value = flags.pose_udp;
+  const auto colon = value.rfind(':');
+  const std::string host = colon == std::string::npos ? flags.address : value.substr(0, colon);
+  const std::string port_text = colon == std::string::npos ? value : value.substr(colon + 1);
+  const std::string usage = "--pose-udp " + value + ": ";
+  int port = -1;
+  const auto [end, ec] = std::from_chars(port_text.data(), port_text.data() + port_text.size(), port);
+  if (ec != std::errc() || end != port_text.data() + port_text.size() || port < 0 || port > 65535) {
+    throw InputError(usage + "the port must be a number 0-65535 (\"9000\" or \"0.0.0.0:9000\")");
+  }
+  asio::error_code error;
+  const auto address = asio::ip::make_address_v4(host, error);
+  if (error) throw InputError(usage + "\"" + host + "\" is not an IPv4 address");
+  return asio::ip::udp::endpoint(address, static_cast<uint16_t>(port));
+}
+
+Pose mounting(const ServeFlags& flags) {
+  if (flags.mount.empty()) return {};
+  try {
+    return parse_pose(flags.mount);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--mount: ") + e.what());
+  }
 }
 
 std::array<uint8_t, 4> parse_address(const std::string& address) {

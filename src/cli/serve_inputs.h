@@ -8,6 +8,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
+
+#include <asio/ip/udp.hpp>
+
+#include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose.h"
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/sensor/sensor.h"
@@ -30,6 +35,15 @@ struct ServeFlags {
   int threads = 0;
   int spin_us = 100;
   std::string log_level = "info";
+  // Live poses (docs/live-poses.md).
+  bool live_poses = false;  // poses arrive over HTTP (and UDP with pose_udp)
+  std::string pose_udp;     // "[ADDR:]PORT": also listen for UDP pose messages (implies live_poses)
+  std::string pose_clock = "sender";
+  double pose_extrapolate_ms = 100.0;
+  std::string pose_timeout = "invalid";
+  double cast_ahead_ms = 2.0;  // with live poses: how long before a packet is due it is cast
+  std::string mount;           // vehicle_from_sensor "x y z qx qy qz qw"
+  bool per_column_poses = true;
 };
 
 // $LIDARTWIN_SOURCE_DIR, else the source tree this binary was built from.
@@ -41,6 +55,12 @@ std::filesystem::path find_input(const std::string& flag, const std::string& val
 std::filesystem::path scene_path(const ServeFlags& flags);
 // --pose, else --trajectory, else the default scene's inspection flight, else the identity pose.
 Trajectory load_trajectory(const ServeFlags& flags);
+bool live(const ServeFlags& flags);
+LivePoseOptions live_pose_options(const ServeFlags& flags);  // throws InputError naming the flag
+// --pose-udp as an endpoint ("9000" listens on --address); nullopt without the flag.
+std::optional<asio::ip::udp::endpoint> pose_udp_endpoint(const ServeFlags& flags);
+Pose mounting(const ServeFlags& flags);  // --mount, identity without it
+
 // --address as 4 bytes; throws InputError naming the flag unless it is an IPv4 literal.
 std::array<uint8_t, 4> parse_address(const std::string& address);
 

@@ -1,6 +1,7 @@
 // The forward model: the one place that stamps columns, builds packet headers and encodes frames.
 #include "lidartwin/frame/forward_model.h"
 
+#include <atomic>
 #include <cassert>
 
 #include "lidartwin/frame/imu_model.h"
@@ -17,7 +18,8 @@ struct ForwardModel::Impl {
         prod_sn(model_setup.prod_sn),
         packets(model_setup.render.format),  // validates the format first
         renderer(scene, std::move(model_setup.render), pool),
-        firsts(packets_to_send(packets.format())) {
+        firsts(packets_to_send(packets.format())),
+        per_column_poses(model_setup.per_column_poses) {
     const LidarDataFormat& f = packets.format();
     valid_status = f.udp_profile_lidar == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;  // 4.2, 4.4
     index_of_first.assign(static_cast<size_t>(f.columns_per_frame / f.columns_per_packet), -1);
@@ -43,15 +45,23 @@ struct ForwardModel::Impl {
   }
 
   // Columns [first, last) of frame k: from where each was observed, and whether at all (in the
-  // column window, 6.4, with a pose the source stands behind).
-  void locate_columns(uint64_t frame, int first, int last, const PoseSpan& span, FrameColumns& columns) const {
+  // column window, 6.4, with a pose the source stands behind). Without per-column poses every
+  // column is cast from the frame's first column's pose (motion distortion left out). Returns the
+  // columns in the window that had no pose.
+  size_t locate_columns(uint64_t frame, int first, int last, const PoseSpan& span, FrameColumns& columns) const {
+    const double frame_pose_time_s = clock.column_pose_time_s(frame, 0);
+    size_t unposed = 0;
     for (int m = first; m < last; ++m) {
       const auto column = static_cast<size_t>(m);
       const double time_s = clock.column_pose_time_s(frame, m);
-      columns.observed[column] = column_in_window(format().column_window, m) && span.contains(time_s);
+      const double pose_time_s = per_column_poses ? time_s : frame_pose_time_s;
+      const bool in_window = column_in_window(format().column_window, m);
+      columns.observed[column] = in_window && span.contains(pose_time_s);
+      unposed += in_window && !columns.observed[column];
       columns.times_s[column] = time_s - clock.pose_origin_s;
-      if (columns.observed[column]) columns.poses[column] = poses.at(time_s);
+      if (columns.observed[column]) columns.poses[column] = poses.at(pose_time_s);
     }
+    return unposed;
   }
 
   // The timestamp (6.3) and status (4.2, 4.4) the packets carry for columns [first, last).
@@ -64,7 +74,7 @@ struct ForwardModel::Impl {
   }
 
   // Packets [begin, end) whose columns are contiguous.
-  void render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
+  size_t render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
     const int cpp = columns_per_packet();
     const int first = firsts[begin];
     const int last = firsts[end - 1] + cpp;
@@ -74,8 +84,9 @@ struct ForwardModel::Impl {
     const PacketHeader header = header_of(frame);
     // Each packet's columns are located and stamped by the worker that casts them, and the packet
     // is encoded by it as soon as its pixels are in.
+    std::atomic<size_t> unposed{0};
     const auto prepare = [&](int block_begin, int block_end) {
-      locate_columns(frame, block_begin, block_end, span, out.columns);
+      unposed.fetch_add(locate_columns(frame, block_begin, block_end, span, out.columns), std::memory_order_relaxed);
       stamp_columns(frame, block_begin, block_end, &out.columns.observed, out.scan);
     };
     const auto encode = [&](int block_begin, int) {
@@ -83,6 +94,7 @@ struct ForwardModel::Impl {
       packets.encode(header, out.scan, block_begin, slot(out, static_cast<size_t>(index)));
     };
     renderer.render(out.columns, first, last, out.scan, encode, prepare);
+    return unposed.load();
   }
 
   const PoseSource& poses;
@@ -94,6 +106,7 @@ struct ForwardModel::Impl {
   std::vector<int> firsts;
   std::vector<int> index_of_first;  // packet slot in the frame -> index in firsts, -1 = not sent
   uint32_t valid_status = 1;
+  bool per_column_poses = true;
 };
 
 ForwardModel::ForwardModel(const Scene& scene, const PoseSource& poses, ForwardModelSetup setup, WorkerPool& pool)
@@ -118,18 +131,30 @@ EncodedFrame ForwardModel::make_frame_buffer() const {
   return frame;
 }
 
-void ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
+size_t ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
   const auto& firsts = impl_->firsts;
   assert(begin <= end && end <= firsts.size());
   const int cpp = impl_->columns_per_packet();
   // A wrapping column window sends two runs of consecutive packets (6.4); render each as one.
+  size_t unposed = 0;
   while (begin < end) {
     size_t run_end = begin + 1;
     while (run_end < end && firsts[run_end] == firsts[run_end - 1] + cpp) ++run_end;
-    impl_->render_run(frame, begin, run_end, out);
+    unposed += impl_->render_run(frame, begin, run_end, out);
     begin = run_end;
   }
+  return unposed;
 }
+
+bool ForwardModel::packet_observed(const EncodedFrame& frame, size_t index) const {
+  const int first = impl_->firsts[index];
+  for (int m = first; m < first + impl_->columns_per_packet(); ++m) {
+    if (frame.columns.observed[static_cast<size_t>(m)]) return true;
+  }
+  return false;
+}
+
+const PoseSource& ForwardModel::poses() const { return impl_->poses; }
 
 std::span<const uint8_t> ForwardModel::packet(const EncodedFrame& frame, size_t index) const {
   const size_t size = packet_size();

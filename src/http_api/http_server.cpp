@@ -68,7 +68,8 @@ httplib::Server::HandlerResponse fill_error_body(httplib::Response& response, st
 }  // namespace
 
 struct HttpServer::Impl {
-  Impl(Sensor& sensor, HttpServerOptions server_options) : options(std::move(server_options)), handler(sensor) {}
+  Impl(Sensor& sensor, HttpServerOptions server_options)
+      : options(std::move(server_options)), handler(sensor, options.lidartwin_api) {}
 
   void configure();
   void configure_connections();

@@ -85,6 +85,7 @@ std::string route_tail(const ApiRequest& request, std::string_view route_path) {
 
 ApiResponse RequestHandler::handle(const ApiRequest& request) const {
   try {
+    if (extension_ && origin_form_path(request.path).starts_with(kExtensionPrefix)) return extension_(request);
     return dispatch(sensor_, request);
   } catch (const HttpError& e) {
     return error_response(e.status(), e.what());

@@ -4,16 +4,29 @@
 #include <mutex>
 
 #include "lidartwin/frame/forward_model.h"
+#include "lidartwin/rig/pose_api.h"
 
 namespace lidartwin {
 
+namespace {
+HttpServerOptions with_pose_api(HttpServerOptions http, LivePoses* live, const Streamer& streamer) {
+  if (!live) return http;
+  http.lidartwin_api = [live, &streamer](const ApiRequest& request) {
+    return live_pose_endpoint(*live, streamer.stats(), request);
+  };
+  return http;
+}
+}  // namespace
+
 VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
     : rig_(rig),
+      poses_(rig.poses, setup.mounting),
+      per_column_poses_(setup.per_column_poses),
       max_range_m_(setup.max_range_m),
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
       sensor_(std::move(setup.identity), std::move(setup.sensor)),
-      http_(sensor_, std::move(setup.http)),
+      http_(sensor_, with_pose_api(std::move(setup.http), rig.live, streamer_)),
       streamer_(
           rig.io,
           [this](const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns) {
@@ -37,7 +50,8 @@ std::unique_ptr<ForwardModel> VirtualSensor::make_model(const StreamConfig& conf
   setup.pose_origin_s = rig_.poses.start_s() + static_cast<double>(start_steady_ns - rig_.epoch_steady_ns) * 1e-9;
   setup.init_id = config.init_id;
   setup.prod_sn = config.prod_sn;
-  return std::make_unique<ForwardModel>(rig_.scene, rig_.poses, std::move(setup), rig_.pool);
+  setup.per_column_poses = per_column_poses_;
+  return std::make_unique<ForwardModel>(rig_.scene, poses_, std::move(setup), rig_.pool);
 }
 
 void VirtualSensor::start() {

@@ -3,6 +3,8 @@
 // frame takes milliseconds): a worker thread has the forward model render whole frames into a
 // ring of `frames_ahead + 1` slots, publishing each packet as soon as its columns are encoded. The
 // send clock only copies finished bytes to the socket, so it is never late because of ray casting.
+// With live poses, running ahead makes poses stale: a paced worker casts each packet only
+// cast_ahead before it is due, so the newest pose received reaches the next packet.
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -14,14 +16,22 @@
 #include <vector>
 
 #include "lidartwin/frame/forward_model.h"
+#include "streamer/session_timing.h"
 
 namespace lidartwin::streamer_detail {
 
 class RenderAhead {
  public:
-  // model must outlive this. worker_nice: the worker's nice value (it also leaves any real-time
-  // policy it inherited, so the send clock wins the CPU when a deadline comes).
-  RenderAhead(const ForwardModel& model, int frames_ahead, int worker_nice);
+  struct Options {
+    int frames_ahead = 2;
+    // The worker's nice value (it also leaves any real-time policy it inherited, so the send clock
+    // wins the CPU when a deadline comes).
+    int worker_nice = 0;
+    // > 0: cast each packet no earlier than this before its deadline, one packet at a time.
+    int64_t cast_ahead_ns = 0;
+  };
+  // model must outlive this; timing places its packets on the steady clock.
+  RenderAhead(const ForwardModel& model, const SessionTiming& timing, Options options);
   ~RenderAhead();  // stops the worker and joins it
   RenderAhead(const RenderAhead&) = delete;
   RenderAhead& operator=(const RenderAhead&) = delete;
@@ -31,26 +41,36 @@ class RenderAhead {
   // The send clock is done with every frame up to `frame`: their slots are free, and the worker
   // skips (or abandons) any frame before frame + 1 that it has not rendered yet.
   void finished(uint64_t frame);
+  // Whether a finished packet has any observed column (false: every column lacked a pose).
+  bool observed(uint64_t frame, size_t index) const;
+  // What the pose source had heard when the packet was cast.
+  PoseFreshness freshness(uint64_t frame, size_t index) const;
   // Time the worker spent rendering and encoding since the last call.
   uint64_t take_busy_ns() { return busy_ns_.exchange(0); }
+  // Columns in the window that went out unobserved for want of a pose, since the last call.
+  uint64_t take_unposed_columns() { return unposed_columns_.exchange(0); }
 
  private:
   struct Slot {
     std::atomic<uint64_t> frame{UINT64_MAX};
     std::atomic<size_t> ready{0};  // packets [0, ready) are encoded
     EncodedFrame encoded;
+    std::vector<PoseFreshness> freshness;  // per packet
   };
 
   void run();
   bool wait_for_room(uint64_t& frame);  // false when stopping
+  bool wait_until(int64_t steady_ns);   // false when stopping
   void render_frame(uint64_t frame, Slot& slot);
   bool abandoned(uint64_t frame) const { return frame < next_needed_.load(std::memory_order_acquire); }
 
   const ForwardModel& model_;
-  int worker_nice_ = 0;
+  SessionTiming timing_;
+  Options options_;
   std::vector<std::pair<size_t, size_t>> chunks_;  // packet index ranges rendered in one call
   std::vector<std::unique_ptr<Slot>> slots_;
   std::atomic<uint64_t> busy_ns_{0};
+  std::atomic<uint64_t> unposed_columns_{0};
   std::atomic<uint64_t> next_needed_{0};
   std::mutex mutex_;
   std::condition_variable wake_;

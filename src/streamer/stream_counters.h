@@ -2,6 +2,7 @@
 // What the send clock counts, on the io thread only; the Streamer reports it once a second.
 #include <cstdint>
 
+#include "lidartwin/pose/pose_source.h"
 #include "lidartwin/sensor/stream_config.h"
 #include "streamer/lateness.h"
 
@@ -16,6 +17,19 @@ struct StreamCounters {
   LatenessHistogram recent_lateness;  // since the last periodic log line
   uint64_t skipped_packets = 0;       // overdue by more than a frame: not sent (see StreamSession)
   uint64_t imu_skipped = 0;
+  LatenessHistogram pose_latency;   // a pose's arrival -> the first packet cast with it was sent
+  uint64_t pose_revision_sent = 0;  // the newest pose revision a sent packet was cast with
+
+  // A packet cast with poses up to `freshness` was sent at now_ns.
+  void record_pose_use(const PoseFreshness& freshness, int64_t now_ns) {
+    if (freshness.revision <= pose_revision_sent) return;
+    pose_revision_sent = freshness.revision;
+    pose_latency.add(now_ns - freshness.arrival_steady_ns);
+    stats.pose_latency_count = pose_latency.count();
+    stats.pose_latency_p50_us = pose_latency.percentile_us(0.5);
+    stats.pose_latency_p99_us = pose_latency.percentile_us(0.99);
+    stats.pose_latency_max_us = pose_latency.max_us();
+  }
 
   void record_lidar_send(int64_t lateness_ns) {
     ++stats.lidar_packets_sent;

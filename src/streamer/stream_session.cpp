@@ -30,7 +30,8 @@ StreamSession::StreamSession(asio::io_context& io, UdpSender& sender, StreamCoun
       timing_(timing),
       options_(options) {
   if (config_->udp_port_lidar == 0) return;
-  render_ = std::make_unique<RenderAhead>(*model_, options_.frames_ahead, options_.render_nice);
+  render_ = std::make_unique<RenderAhead>(
+      *model_, timing_, RenderAhead::Options{options_.frames_ahead, options_.render_nice, options_.cast_ahead_ns});
   packets_per_frame_ = model_->packet_columns().size();
   blank_ = model_->make_frame_buffer();
 }
@@ -84,9 +85,13 @@ void StreamSession::send_lidar_packet(int64_t now_ns) {
   if (bytes.empty()) {
     ++counters_.stats.render_stalls;
     bytes = model_->blank_packet(frame_, packet_index_, blank_);
+  } else if (options_.withhold_unposed && !render_->observed(frame_, packet_index_)) {
+    ++counters_.stats.withheld_packets;
+    return;
   }
   if (sender_.send(config_->udp_dest, config_->udp_port_lidar, bytes)) {
     counters_.record_lidar_send(now_ns - lidar_deadline_ns());
+    counters_.record_pose_use(render_->freshness(frame_, packet_index_), now_ns);
   }
 }
 

@@ -39,7 +39,9 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     bool send_imu = false;
     int frames_ahead = 2;
     int render_nice = 0;
-    int64_t spin_ns = 0;  // wake this much before a lidar deadline, then spin to it
+    int64_t spin_ns = 0;            // wake this much before a lidar deadline, then spin to it
+    int64_t cast_ahead_ns = 0;      // > 0: cast each packet only this long before it is due
+    bool withhold_unposed = false;  // do not send packets none of whose columns had a pose
   };
   StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
                 std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model, SessionTiming timing,
@@ -47,6 +49,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   void start();
   void stop();  // cancels both clocks and joins the render worker
   uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }
+  uint64_t take_unposed_columns() { return render_ ? render_->take_unposed_columns() : 0; }
 
  private:
   int64_t lidar_deadline_ns() const;

@@ -110,6 +110,8 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
   session_options.frames_ahead = options_.frames_ahead;
   session_options.render_nice = options_.render_nice;
   session_options.spin_ns = int64_t{options_.spin_us} * 1000;
+  session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
+  session_options.withhold_unposed = options_.withhold_unposed;
   session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config),
                                                               std::move(model), timing, session_options);
   session_->start();

@@ -30,6 +30,7 @@ void Streamer::arm_stats_timer() {
 void Streamer::report_stats() {
   StreamStats& stats = counters_->stats;
   const uint64_t busy_ns = session_ ? session_->take_render_busy_ns() : 0;
+  stats.columns_without_pose += session_ ? session_->take_unposed_columns() : 0;
   stats.render_load = static_cast<double>(busy_ns) / static_cast<double>(kStatsPeriodNs);
   warn_if_behind(stats.render_load);
   if (++stats_ticks_ % kDebugLogTicks == 0) {
@@ -44,8 +45,9 @@ void Streamer::report_stats() {
 void Streamer::warn_if_behind(double render_load) {
   const StreamStats& stats = counters_->stats;
   const uint64_t skipped = counters_->skipped_packets + counters_->imu_skipped;
-  const bool news =
-      stats.render_stalls > warned_stalls_ || skipped > warned_skips_ || sender_->errors() > warned_errors_;
+  const bool news = stats.render_stalls > warned_stalls_ || skipped > warned_skips_ ||
+                    sender_->errors() > warned_errors_ || stats.columns_without_pose > warned_unposed_ ||
+                    stats.withheld_packets > warned_withheld_;
   const int64_t now = steady_now_ns();
   if (!news || now - last_warning_ns_ < kWarningIntervalNs) return;
   if (stats.render_stalls > warned_stalls_) {
@@ -61,6 +63,16 @@ void Streamer::warn_if_behind(double render_load) {
   if (sender_->errors() > warned_errors_) {
     spdlog::warn("streamer: {} UDP sends failed ({} in total)", sender_->errors() - warned_errors_, sender_->errors());
   }
+  if (stats.columns_without_pose > warned_unposed_ || stats.withheld_packets > warned_withheld_) {
+    spdlog::warn(
+        "streamer: {} columns had no pose ({} in total; {}), {} packets withheld ({} in total): the live "
+        "pose stream is late or stalled (GET /lidartwin/v1/pose)",
+        stats.columns_without_pose - warned_unposed_, stats.columns_without_pose,
+        options_.withhold_unposed ? "not sent" : "sent with status 0", stats.withheld_packets - warned_withheld_,
+        stats.withheld_packets);
+  }
+  warned_unposed_ = stats.columns_without_pose;
+  warned_withheld_ = stats.withheld_packets;
   warned_stalls_ = stats.render_stalls;
   warned_skips_ = skipped;
   warned_errors_ = sender_->errors();

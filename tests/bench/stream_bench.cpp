@@ -33,10 +33,12 @@
 #include "../e2e/support/udp_socket.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/lidar_packet.h"
+#include "stream_reception.h"
 
 namespace {
 using namespace lidartwin;
 using namespace lidartwin::e2e;
+using namespace lidartwin::bench;
 
 struct Flags {
   double duration_s = 30;
@@ -65,96 +67,11 @@ Flags parse_flags(int argc, char** argv) {
   return flags;
 }
 
-// utime + stime of a process, in seconds.
-double cpu_seconds(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const auto after_name = text.rfind(')');
-  std::istringstream fields(text.substr(after_name + 2));
-  std::string field;
-  unsigned long long utime = 0, stime = 0;
-  for (int index = 3; fields >> field; ++index) {
-    if (index == 14) utime = std::stoull(field);
-    if (index == 15) {
-      stime = std::stoull(field);
-      break;
-    }
-  }
-  return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
-}
-
-struct Reception {
-  size_t received = 0;
-  size_t wrong_size = 0;
-  std::vector<int64_t> lateness_ns;          // read by the benchmark - scheduled
-  std::vector<int64_t> arrival_lateness_ns;  // queued by the kernel (SO_TIMESTAMPNS) - scheduled
-  std::map<uint64_t, size_t> per_frame;      // frame_id -> packets
-};
-
-// Reads the header fields the loss and lateness figures need, straight from the bytes (4.3, 4.4;
-// LEGACY 4.2): frame_id and the last column's timestamp.
-void receive(UdpSocket& socket, const PacketFormat& format, double duration_s, Reception& out) {
-  const auto& f = format.format();
-  const bool legacy = f.udp_profile_lidar == UdpProfileLidar::kLegacy;
-  const size_t header = legacy ? 0 : 32;
-  const size_t last_column = header + static_cast<size_t>(f.columns_per_packet - 1) * format.column_size();
-  const int64_t end = monotonic_now_ns() + static_cast<int64_t>(duration_s * 1e9);
-  // Kernel arrival stamps are CLOCK_REALTIME; column timestamps are CLOCK_MONOTONIC.
-  const int64_t realtime_minus_monotonic =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-          .count() -
-      monotonic_now_ns();
-  while (monotonic_now_ns() < end) {
-    const auto d = socket.receive(std::chrono::milliseconds(200));
-    if (!d) continue;
-    if (d->bytes.size() != format.lidar_packet_size()) {
-      ++out.wrong_size;
-      continue;
-    }
-    uint16_t frame_id = 0;
-    uint64_t ts = 0;
-    std::memcpy(&frame_id, d->bytes.data() + (legacy ? 10 : 2), 2);
-    std::memcpy(&ts, d->bytes.data() + last_column, 8);
-    ++out.received;
-    ++out.per_frame[frame_id];
-    out.lateness_ns.push_back(d->received_ns - static_cast<int64_t>(ts));
-    out.arrival_lateness_ns.push_back(d->arrived_ns - realtime_minus_monotonic - static_cast<int64_t>(ts));
-  }
-}
-
-double percentile_us(std::vector<int64_t> values, double q) {
-  if (values.empty()) return 0;
-  std::sort(values.begin(), values.end());
-  const auto index = static_cast<size_t>(q * static_cast<double>(values.size() - 1));
-  return static_cast<double>(values[index]) / 1e3;
-}
-
 std::vector<std::string> daemon_args(const Flags& flags) {
   std::vector<std::string> args{"--profile", flags.profile, "--threads", flags.threads};
   if (!flags.scene.empty()) args.insert(args.end(), {"--scene", flags.scene});
   if (!flags.pose.empty()) args.insert(args.end(), {"--pose", flags.pose});
   return args;
-}
-
-// Frames seen completely inside the window (not the first or last) and their missing packets.
-size_t lost_packets(const Reception& r, size_t expected_per_frame) {
-  if (r.per_frame.size() < 3) return 0;
-  size_t lost = 0;
-  auto first = std::next(r.per_frame.begin());
-  auto last = std::prev(r.per_frame.end());
-  for (auto it = first; it != last; ++it) lost += expected_per_frame - std::min(expected_per_frame, it->second);
-  // Frames missing entirely between the first and last seen.
-  const uint64_t span = last->first - r.per_frame.begin()->first - 1;
-  lost += (span - (r.per_frame.size() - 2)) * expected_per_frame;
-  return lost;
-}
-
-// The receiver's own wake-up delay is part of what it measures; as root it runs SCHED_FIFO (like
-// the daemon's send clock) so the figures show the daemon, not the benchmark's scheduling.
-bool receive_in_real_time() {
-  sched_param param{};
-  param.sched_priority = 5;
-  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
 }
 
 int run(const Flags& flags) {

@@ -28,6 +28,9 @@ struct ForwardModelSetup {
   double pose_origin_s = 0.0;
   uint32_t init_id = 0;  // header fields of every packet (4.3)
   uint64_t prod_sn = 0;
+  // Each column cast from the pose at its own time (as a sensor moves while it spins); false casts
+  // every column of a frame from the frame's first column's pose, to show what motion distortion does.
+  bool per_column_poses = true;
 };
 
 // A frame's worth of output, owned and reused by the caller (no allocation per frame).
@@ -57,9 +60,13 @@ class ForwardModel {
   // Renders packets [begin, end) (indices into packet_columns()) of frame k into out. Each packet
   // is encoded by the worker that finished its columns. A column is observed when it lies in the
   // column window (6.4) and the pose source answers for its time; others go out with status 0 and
-  // zero pixels. The same frame is byte-identical for any thread count or packet split.
-  void render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const;
-  void render(uint64_t frame, EncodedFrame& out) const { render(frame, 0, packet_columns().size(), out); }
+  // zero pixels. The same frame is byte-identical for any thread count or packet split. Returns
+  // the number of columns in the window that went out unobserved for want of a pose.
+  size_t render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const;
+  size_t render(uint64_t frame, EncodedFrame& out) const { return render(frame, 0, packet_columns().size(), out); }
+  // Whether packet `index` of a rendered frame has any observed column.
+  bool packet_observed(const EncodedFrame& frame, size_t index) const;
+  const PoseSource& poses() const;
   std::span<const uint8_t> packet(const EncodedFrame& frame, size_t index) const;
   // When packet `index` of frame k leaves the sensor: its last column's timestamp (protocol doc 1).
   uint64_t packet_timestamp_ns(uint64_t frame, size_t index) const;

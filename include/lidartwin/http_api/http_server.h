@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "lidartwin/http_api/request_handler.h"
 #include "lidartwin/sensor/sensor.h"
 
 namespace lidartwin {
@@ -21,6 +22,8 @@ struct HttpServerOptions {
   std::chrono::seconds keep_alive_timeout{5};
   std::size_t keep_alive_max_requests = 1000;
   std::size_t threads = 8;
+  // lidartwin's own endpoints (below /lidartwin/v1/, not part of the sensor's API), if any.
+  ExtensionEndpoint lidartwin_api = nullptr;
 };
 
 // start() could not bind. The message explains what to do (for ports below 1024 the remedies of

@@ -2,9 +2,11 @@
 // The HTTP API as a pure function: an ApiRequest in, an ApiResponse out, mapped onto Sensor
 // operations (protocol doc 2.3). No sockets here, so every endpoint can be tested without a network;
 // HttpServer does the I/O with cpp-httplib.
+#include <functional>
 #include <map>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -39,15 +41,22 @@ class HttpError : public std::runtime_error {
   int status_;
 };
 
+// Answers requests below kExtensionPrefix: the daemon's own endpoints, which the sensor state
+// machine knows nothing of (live poses). Throws like any endpoint (HttpError, InputError).
+using ExtensionEndpoint = std::function<ApiResponse(const ApiRequest& request)>;
+inline constexpr std::string_view kExtensionPrefix = "/lidartwin/v1/";
+
 class RequestHandler {
  public:
-  explicit RequestHandler(Sensor& sensor) : sensor_(sensor) {}
+  explicit RequestHandler(Sensor& sensor, ExtensionEndpoint extension = nullptr)
+      : sensor_(sensor), extension_(std::move(extension)) {}
 
   // Never throws: bad input becomes a 4xx naming the problem, anything unexpected a 500.
   ApiResponse handle(const ApiRequest& request) const;
 
  private:
   Sensor& sensor_;
+  ExtensionEndpoint extension_;
 };
 
 // "http://host:port/api/v1/x" -> "/api/v1/x"; origin-form paths are returned unchanged.

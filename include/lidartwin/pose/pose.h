@@ -15,6 +15,8 @@ struct Pose {
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return rotation * p + translation; }
+  // Composition: (a_from_b * b_from_c) is a_from_c.
+  Pose operator*(const Pose& b) const { return {rotation * b.rotation, rotation * b.translation + translation}; }
 };
 std::string to_string(const Pose& pose);
 // "x y z qx qy qz qw" (TUM order). Throws InputError naming the text and the problem.

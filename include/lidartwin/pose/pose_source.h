@@ -2,6 +2,7 @@
 // Where the sensor is at a given time: the one question the forward model asks of motion. A static
 // pose and a TUM trajectory answer for any time; live sources (a HIL rig's pose stream, a vehicle
 // with sensor mountings) answer only for the span they have heard about, and say so through span().
+#include <cstdint>
 #include <limits>
 #include <memory>
 
@@ -17,6 +18,13 @@ struct PoseSpan {
   friend bool operator==(const PoseSpan&, const PoseSpan&) = default;
 };
 
+// How recent a live source's knowledge is: the number of poses it has accepted and when the newest
+// arrived (host steady clock, ns). Sources that do not listen answer {0, 0}.
+struct PoseFreshness {
+  uint64_t revision = 0;
+  int64_t arrival_steady_ns = 0;
+};
+
 // world_from_sensor over time. Implementations are read from several threads at once (the render
 // workers cast columns in parallel), so at() and span() must be safe to call concurrently.
 class PoseSource {
@@ -30,6 +38,9 @@ class PoseSource {
   virtual PoseSpan span() const = 0;
   // The time at which a recording from this source naturally starts (a trajectory's first pose).
   virtual double start_s() const = 0;
+  // Live sources: what the poses at() answers from were last updated with (the streamer measures
+  // from it the latency from a pose's arrival to the first packet cast with it).
+  virtual PoseFreshness freshness() const { return {}; }
 };
 
 // One pose forever.
@@ -59,6 +70,22 @@ class TrajectoryPoses final : public PoseSource {
  private:
   Trajectory trajectory_;
   PoseSpan span_;
+};
+
+// A sensor mounted on a vehicle: the vehicle's motion (world_from_vehicle) composed with the
+// mounting (vehicle_from_sensor), so several sensors of a rig follow one pose stream.
+class MountedPoses final : public PoseSource {
+ public:
+  MountedPoses(const PoseSource& vehicle, const Pose& vehicle_from_sensor)
+      : vehicle_(vehicle), mounting_(vehicle_from_sensor) {}
+  Pose at(double time_s) const override { return vehicle_.at(time_s) * mounting_; }
+  PoseSpan span() const override { return vehicle_.span(); }
+  double start_s() const override { return vehicle_.start_s(); }
+  PoseFreshness freshness() const override { return vehicle_.freshness(); }
+
+ private:
+  const PoseSource& vehicle_;
+  Pose mounting_;
 };
 
 }  // namespace lidartwin

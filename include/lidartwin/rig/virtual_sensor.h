@@ -12,6 +12,7 @@
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/http_api/http_server.h"
+#include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose_source.h"
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/scene/scene.h"
@@ -29,17 +30,22 @@ struct RigContext {
   // The steady-clock instant at which the pose source's time is poses.start_s(): the rig's time
   // zero, so that sensors started together see the same motion at the same instant.
   int64_t epoch_steady_ns = 0;
+  // When poses arrive live (then `poses` is this, or mounts it): each sensor's HTTP server answers
+  // /lidartwin/v1/pose with it.
+  LivePoses* live = nullptr;
 };
 
 // Who one sensor is and how it is reached.
 struct VirtualSensorSetup {
-  SensorIdentity identity;     // product, serial number and beams as served
-  SensorOptions sensor;        // state file, config overrides
-  HttpServerOptions http;      // its address and port
-  StreamerOptions streamer;    // its source address, --record, pacing
-  double max_range_m = 100.0;  // the profile's range limit (casting stops 1 m beyond it)
-  EffectChain chain;           // the profile's physics
-  uint64_t seed = 0;           // noise seed
+  SensorIdentity identity;       // product, serial number and beams as served
+  SensorOptions sensor;          // state file, config overrides
+  HttpServerOptions http;        // its address and port
+  StreamerOptions streamer;      // its source address, --record, pacing
+  double max_range_m = 100.0;    // the profile's range limit (casting stops 1 m beyond it)
+  EffectChain chain;             // the profile's physics
+  uint64_t seed = 0;             // noise seed
+  Pose mounting;                 // vehicle_from_sensor: where the rig's motion carries this sensor
+  bool per_column_poses = true;  // false: every column of a frame cast from the frame's first pose
 };
 
 class VirtualSensor {
@@ -71,6 +77,8 @@ class VirtualSensor {
   void pump_stats(const std::stop_token& stop);
 
   RigContext rig_;
+  MountedPoses poses_;  // the rig's motion carrying this sensor
+  bool per_column_poses_;
   double max_range_m_;
   EffectChain chain_;
   uint64_t seed_;

@@ -32,6 +32,15 @@ struct StreamStats {
   uint64_t render_stalls = 0;  // packets whose columns were not rendered in time
   double max_lateness_us = 0.0;
   double render_load = 0.0;  // render time / real time over the last second (1.0 = saturated)
+  // Live poses (docs/live-poses.md): columns in the window sent unobserved for want of a pose,
+  // packets withheld for the same reason (timeout policy "standby"), and the latency from a
+  // pose's arrival to the first packet cast with it.
+  uint64_t columns_without_pose = 0;
+  uint64_t withheld_packets = 0;
+  uint64_t pose_latency_count = 0;
+  double pose_latency_p50_us = 0.0;
+  double pose_latency_p99_us = 0.0;
+  double pose_latency_max_us = 0.0;
 };
 
 }  // namespace lidartwin

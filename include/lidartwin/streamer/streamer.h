@@ -32,6 +32,10 @@ struct StreamerOptions {
   // The send clock wakes this early and spins to each lidar deadline: a thread's wake-up takes
   // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10).
   int spin_us = 100;
+  // Live poses (docs/live-poses.md): > 0 casts each packet only this long before it is due, so the
+  // newest pose reaches it (frames_ahead still bounds the buffers); 0 casts as far ahead as it can.
+  double cast_ahead_ms = 0.0;
+  bool withhold_unposed = false;  // timeout policy "standby": packets with no posed column are not sent
 };
 
 // The forward model of a config (its beams, format, signal_multiplier, init_id, prod_sn) whose
@@ -93,6 +97,8 @@ class Streamer {
   uint64_t warned_stalls_ = 0;
   uint64_t warned_skips_ = 0;
   uint64_t warned_errors_ = 0;
+  uint64_t warned_unposed_ = 0;
+  uint64_t warned_withheld_ = 0;
   int64_t last_warning_ns_ = 0;
   bool stopped_ = false;
 };

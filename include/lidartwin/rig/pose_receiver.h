@@ -1,0 +1,54 @@
+#pragma once
+// The rig's ear for live poses: a UDP socket on the rig's io_context that feeds every pose message
+// to LivePoses (docs/live-poses.md), and a watchdog that says in the log when the stream stalls and
+// when it resumes, and what was refused and why. Nothing is dropped silently.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <asio.hpp>
+
+#include "lidartwin/pose/live_poses.h"
+
+namespace lidartwin {
+
+class PoseReceiver {
+ public:
+  // listen: where UDP pose messages arrive (none: HTTP only). Throws InputError naming the address
+  // if the socket cannot be bound. `poses` must outlive the receiver.
+  PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional<asio::ip::udp::endpoint> listen);
+  ~PoseReceiver();
+  PoseReceiver(const PoseReceiver&) = delete;
+  PoseReceiver& operator=(const PoseReceiver&) = delete;
+
+  void start();
+  // On the io thread (or before it runs): closes the socket and the watchdog, so run() can return.
+  void stop();
+  uint16_t port() const;  // the bound UDP port (useful with port 0); 0 without UDP
+
+ private:
+  void receive_next();
+  void on_datagram(size_t size);
+  void arm_watchdog();
+  void check_stream();
+  void log_rejection(const std::string& message);
+
+  asio::io_context& io_;
+  LivePoses& poses_;
+  std::optional<asio::ip::udp::socket> socket_;
+  asio::ip::udp::endpoint sender_;
+  std::array<uint8_t, 2048> buffer_{};
+  asio::steady_timer watchdog_;
+  bool stopped_ = false;
+  bool stalled_ = false;
+  uint64_t seen_accepted_ = 0;
+  uint64_t logged_rejections_ = 0;
+  uint64_t reported_rejections_ = 0;
+  int64_t started_ns_ = 0;
+  int64_t last_summary_ns_ = 0;
+  bool waiting_logged_ = false;
+};
+
+}  // namespace lidartwin
