@@ -98,6 +98,7 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorProfile& pr
   setup.mounting = mounting(flags);
   setup.per_column_poses = flags.per_column_poses;
   if (live(flags)) {
+    setup.streamer.lock_step = flags.lock_step;
     setup.streamer.cast_ahead_ms = flags.cast_ahead_ms;
     setup.streamer.withhold_unposed = live_pose_options(flags).timeout == PoseTimeout::kStandby;
   }
@@ -118,8 +119,10 @@ Motion load_motion(const ServeFlags& flags, int64_t epoch_steady_ns) {
     if (!flags.pose.empty() || !flags.trajectory.empty()) {
       throw InputError("--live-poses/--pose-udp: the poses arrive live; leave out --pose and --trajectory");
     }
-    motion.live = std::make_unique<LivePoses>(live_pose_options(flags), epoch_steady_ns);
-    motion.description = "live poses";
+    // In lock-step the simulation's clock stands in for the host's (a zero epoch: pose time is
+    // simulation time), and the streamer follows it.
+    motion.live = std::make_unique<LivePoses>(live_pose_options(flags), flags.lock_step ? 0 : epoch_steady_ns);
+    motion.description = flags.lock_step ? "live poses in lock-step with the simulation's clock" : "live poses";
     return motion;
   }
   Trajectory trajectory = load_trajectory(flags);
@@ -152,7 +155,7 @@ int serve(const ServeFlags& flags) {
   // supervisor that stops the daemon as soon as it answers gets a clean stop, not exit 143.
   asio::signal_set signals(io, SIGINT, SIGTERM);
   WorkerPool pool(flags.threads, setup.streamer.render_nice);
-  const RigContext rig{io, scene, motion.poses(), pool, epoch_steady_ns, motion.live.get()};
+  const RigContext rig{io, scene, motion.poses(), pool, flags.lock_step ? 0 : epoch_steady_ns, motion.live.get()};
   std::unique_ptr<PoseReceiver> receiver;
   if (motion.live) receiver = std::make_unique<PoseReceiver>(io, *motion.live, pose_udp_endpoint(flags));
   std::unique_ptr<VirtualSensor> sensor;
@@ -210,9 +213,15 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
       ->excludes(trajectory);
   sub->add_option("--pose-udp", flags->pose_udp, "[ADDR:]PORT: listen for UDP pose messages (implies --live-poses)")
       ->excludes(trajectory);
-  sub->add_option("--pose-clock", flags->pose_clock, "the clock of pose times: sender, monotonic, realtime, tai")
-      ->check(CLI::IsMember({"sender", "monotonic", "realtime", "tai"}))
-      ->capture_default_str();
+  auto* pose_clock =
+      sub->add_option("--pose-clock", flags->pose_clock, "the clock of pose times: sender, monotonic, realtime, tai")
+          ->check(CLI::IsMember({"sender", "monotonic", "realtime", "tai"}))
+          ->capture_default_str();
+  sub->add_flag("--lock-step", flags->lock_step,
+                "the simulator owns time: packets are stamped with the poses' times and sent as those times "
+                "arrive (implies --live-poses)")
+      ->excludes(trajectory)
+      ->excludes(pose_clock);
   sub->add_option("--pose-extrapolate-ms", flags->pose_extrapolate_ms,
                   "extrapolate live poses up to this far past the newest")
       ->check(CLI::Range(0.0, 10'000.0))

@@ -49,7 +49,7 @@ Trajectory load_trajectory(const ServeFlags& flags) {
   return Trajectory::constant(Pose{});
 }
 
-bool live(const ServeFlags& flags) { return flags.live_poses || !flags.pose_udp.empty(); }
+bool live(const ServeFlags& flags) { return flags.live_poses || !flags.pose_udp.empty() || flags.lock_step; }
 
 LivePoseOptions live_pose_options(const ServeFlags& flags) {
   LivePoseOptions options;
@@ -57,7 +57,7 @@ LivePoseOptions live_pose_options(const ServeFlags& flags) {
   if (!clock) throw InputError("--pose-clock " + flags.pose_clock + ": must be sender, monotonic, realtime or tai");
   const auto timeout = parse_pose_timeout(flags.pose_timeout);
   if (!timeout) throw InputError("--pose-timeout " + flags.pose_timeout + ": must be hold, invalid or standby");
-  options.clock = *clock;
+  options.clock = flags.lock_step ? PoseClock::kSimulation : *clock;
   options.timeout = *timeout;
   options.max_extrapolation_s = flags.pose_extrapolate_ms * 1e-3;
   return options;

@@ -46,6 +46,7 @@ const char* to_string(PoseClock clock) {
     case PoseClock::kMonotonic: return "monotonic";
     case PoseClock::kRealtime: return "realtime";
     case PoseClock::kTai: return "tai";
+    case PoseClock::kSimulation: return "simulation";
   }
   return "unknown";
 }
@@ -79,7 +80,8 @@ LivePoses::LivePoses(LivePoseOptions options, int64_t epoch_steady_ns)
 // Host steady clock minus the message clock, as of this message.
 int64_t LivePoses::offset_ns_locked(int64_t arrival_steady_ns, int64_t message_ns) {
   switch (options_.clock) {
-    case PoseClock::kMonotonic: return 0;
+    case PoseClock::kMonotonic:
+    case PoseClock::kSimulation: return 0;
     case PoseClock::kRealtime: return clock_ns(CLOCK_MONOTONIC) - clock_ns(CLOCK_REALTIME);
     case PoseClock::kTai: return clock_ns(CLOCK_MONOTONIC) - clock_ns(CLOCK_REALTIME) - kTaiMinusUtcNs;
     case PoseClock::kSender: {
@@ -94,6 +96,23 @@ int64_t LivePoses::offset_ns_locked(int64_t arrival_steady_ns, int64_t message_n
 }
 
 void LivePoses::receive(const PoseMessage& message, int64_t arrival_steady_ns) {
+  add(message, arrival_steady_ns);
+  std::lock_guard lock(listeners_mutex_);
+  for (const auto& [id, listener] : listeners_) listener(message);
+}
+
+int LivePoses::subscribe(Listener listener) {
+  std::lock_guard lock(listeners_mutex_);
+  listeners_.emplace_back(next_listener_, std::move(listener));
+  return next_listener_++;
+}
+
+void LivePoses::unsubscribe(int id) {
+  std::lock_guard lock(listeners_mutex_);
+  std::erase_if(listeners_, [id](const auto& entry) { return entry.first == id; });
+}
+
+void LivePoses::add(const PoseMessage& message, int64_t arrival_steady_ns) {
   std::lock_guard lock(mutex_);
   if (!samples_.empty() && message.time_ns <= samples_.back().time_ns) {
     ++stats_.rejected[static_cast<size_t>(PoseRejection::kTimeBackwards)];

@@ -22,6 +22,7 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
     : rig_(rig),
       poses_(rig.poses, setup.mounting),
       per_column_poses_(setup.per_column_poses),
+      lock_step_(setup.streamer.lock_step),
       max_range_m_(setup.max_range_m),
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
@@ -57,6 +58,9 @@ std::unique_ptr<ForwardModel> VirtualSensor::make_model(const StreamConfig& conf
 void VirtualSensor::start() {
   http_.start();
   subscription_ = sensor_.subscribe([this](const Sensor::StreamConfigPtr& config) { streamer_.apply(config); });
+  if (lock_step_ && rig_.live) {
+    pose_subscription_ = rig_.live->subscribe([this](const PoseMessage& pose) { streamer_.advance_to(pose.time_ns); });
+  }
   stats_pump_ = std::jthread([this](std::stop_token stop) { pump_stats(stop); });
 }
 
@@ -83,6 +87,10 @@ void VirtualSensor::stop() {
   if (subscription_ != 0) {
     sensor_.unsubscribe(subscription_);
     subscription_ = 0;
+  }
+  if (pose_subscription_ != 0) {
+    rig_.live->unsubscribe(pose_subscription_);
+    pose_subscription_ = 0;
   }
   http_.stop();
 }

@@ -30,15 +30,34 @@ StreamSession::StreamSession(asio::io_context& io, UdpSender& sender, StreamCoun
       timing_(timing),
       options_(options) {
   if (config_->udp_port_lidar == 0) return;
+  packets_per_frame_ = model_->packet_columns().size();
+  if (options_.lock_step) {
+    step_ = model_->make_frame_buffer();
+    return;
+  }
   render_ = std::make_unique<RenderAhead>(
       *model_, timing_, RenderAhead::Options{options_.frames_ahead, options_.render_nice, options_.cast_ahead_ns});
-  packets_per_frame_ = model_->packet_columns().size();
   blank_ = model_->make_frame_buffer();
 }
 
 void StreamSession::start() {
+  if (options_.lock_step) return;
   if (packets_per_frame_ > 0) arm_lidar();
   if (options_.send_imu) arm_imu();
+}
+
+// Nothing is skipped or sent late here: a simulator running slower or faster than real time gets
+// every packet of every frame, stamped on its clock, as soon as its time has come.
+void StreamSession::advance_to(uint64_t time_ns) {
+  if (stopped_) return;
+  while (packets_per_frame_ > 0 && model_->packet_timestamp_ns(frame_, packet_index_) <= time_ns) {
+    counters_.stats.columns_without_pose += model_->render(frame_, packet_index_, packet_index_ + 1, step_);
+    if (sender_.send(config_->udp_dest, config_->udp_port_lidar, model_->packet(step_, packet_index_))) {
+      ++counters_.stats.lidar_packets_sent;
+    }
+    advance_lidar();
+  }
+  while (options_.send_imu && timing_.clock.imu_timestamp_ns(imu_index_) <= time_ns) send_imu_packet();
 }
 
 void StreamSession::stop() {
@@ -97,7 +116,7 @@ void StreamSession::send_lidar_packet(int64_t now_ns) {
 
 void StreamSession::advance_lidar() {
   if (++packet_index_ < packets_per_frame_) return;
-  render_->finished(frame_);
+  if (render_) render_->finished(frame_);
   ++counters_.stats.frames_sent;
   ++frame_;
   packet_index_ = 0;
@@ -130,11 +149,15 @@ void StreamSession::on_imu_deadline() {
     ++counters_.imu_skipped;
     ++imu_index_;
   }
+  send_imu_packet();
+  arm_imu();
+}
+
+void StreamSession::send_imu_packet() {
   std::array<uint8_t, kLegacyImuPacketSize> bytes{};
   model_->imu_packet(imu_index_, bytes);
   if (sender_.send(config_->udp_dest, config_->udp_port_imu, bytes)) ++counters_.stats.imu_packets_sent;
   ++imu_index_;
-  arm_imu();
 }
 
 }  // namespace lidartwin::streamer_detail

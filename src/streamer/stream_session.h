@@ -42,12 +42,17 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     int64_t spin_ns = 0;            // wake this much before a lidar deadline, then spin to it
     int64_t cast_ahead_ns = 0;      // > 0: cast each packet only this long before it is due
     bool withhold_unposed = false;  // do not send packets none of whose columns had a pose
+    // The simulator owns time: no timers; advance_to() casts and sends what is due, in order.
+    bool lock_step = false;
   };
   StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
                 std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model, SessionTiming timing,
                 Options options);
   void start();
   void stop();  // cancels both clocks and joins the render worker
+  // Lock-step: casts and sends, in order, every lidar and IMU packet stamped up to time_ns (the
+  // session's clock, which in lock-step is the simulation's). On the io thread.
+  void advance_to(uint64_t time_ns);
   uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }
   uint64_t take_unposed_columns() { return render_ ? render_->take_unposed_columns() : 0; }
 
@@ -61,6 +66,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   int64_t imu_deadline_ns() const;
   void arm_imu();
   void on_imu_deadline();
+  void send_imu_packet();
 
   asio::steady_timer lidar_timer_;
   asio::steady_timer imu_timer_;
@@ -73,6 +79,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   std::unique_ptr<RenderAhead> render_;  // null without a lidar stream; goes before model_
   size_t packets_per_frame_ = 0;         // 0 without a lidar stream
   EncodedFrame blank_;                   // only for blank packets: its pixels stay zero
+  EncodedFrame step_;                    // lock-step: the frame being cast packet by packet
   uint64_t frame_ = 0;
   size_t packet_index_ = 0;
   uint64_t imu_index_ = 0;

@@ -77,8 +77,14 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
     spdlog::info("streamer: STANDBY, not sending (config generation {})", config->generation);
     return;
   }
+  if (options_.lock_step) {
+    spdlog::info("streamer: lock-step: config generation {} starts at the next simulation time", config->generation);
+    return;
+  }
+  const int64_t start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
   try {
-    start_session(std::move(config));
+    start_session(std::move(config), start_steady_ns,
+                  static_cast<uint64_t>(start_steady_ns + timestamp_offset_ns(*config_)));
   } catch (const std::exception& e) {
     // The sensor validated the config; a format the packet encoder refuses is reported, and the
     // daemon stays up without streaming until the next reinit.
@@ -86,7 +92,27 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
   }
 }
 
-void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
+void Streamer::advance_to(int64_t time_ns) {
+  asio::post(io_, [this, time_ns] {
+    if (stopped_ || !config_ || !config_->streaming || time_ns < 0) return;
+    const auto time = static_cast<uint64_t>(time_ns);
+    if (lock_step_time_ns_ && time <= *lock_step_time_ns_) return;
+    lock_step_time_ns_ = time;
+    if (!session_) {
+      // The simulation's clock stands in for the host's: the session's frame 0 starts now, and its
+      // timestamps and pose times are simulation time.
+      try {
+        start_session(config_, time_ns, time);
+      } catch (const std::exception& e) {
+        spdlog::error("streamer: cannot stream config generation {}: {}", config_->generation, e.what());
+        return;
+      }
+    }
+    session_->advance_to(time);
+  });
+}
+
+void Streamer::start_session(std::shared_ptr<const StreamConfig> config, int64_t start_steady_ns, uint64_t origin_ns) {
   const LidarDataFormat& format = config->metadata.format;
   const UdpProfileImu imu_profile = format.udp_profile_imu;
   const bool imu = config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kLegacy;
@@ -94,9 +120,8 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
     spdlog::warn("streamer: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent");
   }
   SessionTiming timing;
-  timing.start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
-  const auto origin_ns = static_cast<uint64_t>(timing.start_steady_ns + timestamp_offset_ns(*config));
-  std::unique_ptr<ForwardModel> model = make_model_(*config, timing.start_steady_ns, origin_ns);
+  timing.start_steady_ns = start_steady_ns;
+  std::unique_ptr<ForwardModel> model = make_model_(*config, start_steady_ns, origin_ns);
   timing.clock = model->clock();
   spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
                to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
@@ -112,6 +137,7 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config) {
   session_options.spin_ns = int64_t{options_.spin_us} * 1000;
   session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
   session_options.withhold_unposed = options_.withhold_unposed;
+  session_options.lock_step = options_.lock_step;
   session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config),
                                                               std::move(model), timing, session_options);
   session_->start();

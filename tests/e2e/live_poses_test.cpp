@@ -6,8 +6,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <numbers>
+#include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -15,6 +17,7 @@
 #include "e2e/support/batcher.h"
 #include "e2e/support/daemon.h"
 #include "e2e/support/pose_sender.h"
+#include "e2e/support/room.h"
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 #include "support/record_capture.h"
@@ -120,7 +123,8 @@ LiveRun fly(bool per_column_poses, bool bad_messages) {
   if (!per_column_poses) args.push_back("--no-per-column-poses");
   Daemon daemon("127.0.0.1", 0, args);
   UdpSocket lidar;
-  SensorHttp http(daemon.address(), daemon.http_port());
+  std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
+  SensorHttp& http = *client;
   ConfigRequest request;
   request.lidar_port = lidar.port();
   request.lidar_mode = "1024x10";
@@ -140,6 +144,7 @@ LiveRun fly(bool per_column_poses, bool bad_messages) {
     run.pose_status = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
   }
   run.log = daemon.log();
+  client.reset();  // closes the keep-alive connection, so the daemon stops at once
   EXPECT_EQ(daemon.stop(), 0) << run.log;
   return run;
 }
@@ -207,6 +212,180 @@ TEST(LivePoses, WithoutPerColumnPosesTheWallsSmearAsTheSensorTurns) {
   EXPECT_GT(quantile(distances, 0.5), 0.05);
   EXPECT_GT(quantile(distances, 0.95), 0.25);
 }
+
+json pose_json(uint32_t sequence, int64_t time_ns, double qw = 1.0) {
+  return {{"sequence", sequence},
+          {"time_ns", time_ns},
+          {"position", {1.0, 0.5, 1.5}},
+          {"orientation", {0.0, 0.0, 0.0, qw}},
+          {"velocity", {0.2, 0.0, 0.0}}};
+}
+
+TEST(LivePosesHttp, PostedPosesAreTakenAndBadOnesRefusedWithTheReason) {
+  Daemon daemon("127.0.0.1", 0,
+                {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--live-poses"});
+  std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
+  SensorHttp& http = *client;
+  const int64_t now = monotonic_ns();
+  auto ok = http.raw_post("/lidartwin/v1/pose", pose_json(1, now).dump());
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->status, 200) << ok->body;
+  EXPECT_EQ(json::parse(ok->body)["sequence"], 1);
+
+  const auto refused = [&http](const std::string& body) {
+    auto response = http.raw_post("/lidartwin/v1/pose", body);
+    EXPECT_EQ(response->status, 400) << body;
+    return json::parse(response->body);
+  };
+  const json quaternion = refused(pose_json(2, now + 10'000'000, 1.5).dump());
+  EXPECT_EQ(quaternion["rejected"], "quaternion");
+  EXPECT_NE(quaternion["error"].get<std::string>().find("unit quaternion"), std::string::npos);
+  EXPECT_EQ(refused(pose_json(3, now - 10'000'000).dump())["rejected"], "time_backwards");
+  EXPECT_EQ(refused("{\"sequence\": 4")["rejected"], "malformed");
+  json misspelt = pose_json(5, now + 20'000'000);
+  misspelt["postion"] = misspelt["position"];
+  const json unknown = refused(misspelt.dump());
+  EXPECT_EQ(unknown["rejected"], "malformed");
+  EXPECT_NE(unknown["error"].get<std::string>().find("postion"), std::string::npos) << unknown.dump();
+
+  const json status = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
+  EXPECT_EQ(status["accepted"], 1);
+  EXPECT_EQ(status["rejected"]["quaternion"], 1);
+  EXPECT_EQ(status["rejected"]["time_backwards"], 1);
+  EXPECT_EQ(status["rejected"]["malformed"], 2);
+  EXPECT_EQ(status["newest"]["sequence"], 1);
+  EXPECT_EQ(status["newest"]["velocity"], json({0.2, 0.0, 0.0}));
+  EXPECT_EQ(http.raw_get("/lidartwin/v1/nothing")->status, 404);
+  EXPECT_EQ(http.raw_get("/api/v1/sensor/metadata/sensor_info")->status, 200);  // the sensor's API is untouched
+  client.reset();  // closes the keep-alive connection, so the daemon stops at once
+  EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+}
+
+TEST(LivePosesHttp, ADaemonFlyingATrajectoryHasNoPoseEndpoint) {
+  Daemon daemon("127.0.0.1", 0, room_args());
+  SensorHttp http(daemon.address(), daemon.http_port());
+  EXPECT_EQ(http.raw_post("/lidartwin/v1/pose", pose_json(1, 1).dump())->status, 404);
+}
+
+// Timeout policy "standby": no lidar packet goes out until poses come, and none once they stop.
+TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
+  Daemon daemon("127.0.0.1", 0,
+                {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--pose-udp", "127.0.0.1:0",
+                 "--pose-clock", "monotonic", "--pose-timeout", "standby", "--pose-extrapolate-ms", "50"});
+  UdpSocket lidar;
+  std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
+  SensorHttp& http = *client;
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "512x10";
+  const Metadata metadata = parse(sdk016_init_client(http, request));
+  EXPECT_FALSE(lidar.receive(std::chrono::milliseconds(600))) << "a packet without any pose";
+  {
+    RigThread rig(pose_udp_port(daemon.log()), Turn{monotonic_ns()}, false);
+    ScanBatcher batcher(metadata.format);
+    expect_complete_scans(receive_scans(lidar, batcher, 2, std::chrono::seconds(10)), metadata, 2);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the stream stalls
+  lidar.drain();
+  EXPECT_FALSE(lidar.receive(std::chrono::milliseconds(500))) << "a packet after the poses stopped";
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // the streamer's stats are once a second
+  const json status = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
+  EXPECT_GT(status["withheld_packets"].get<int>(), 0) << status.dump(2);
+  EXPECT_TRUE(status["stalled"].get<bool>());
+  client.reset();  // closes the keep-alive connection, so the daemon stops at once
+  EXPECT_EQ(daemon.stop(), 0);
+  EXPECT_NE(daemon.log().find("live poses: stream stalled"), std::string::npos) << daemon.log();
+}
+
+// Lock-step: the simulator's clock drives the sensor. Poses stamped in simulation time arrive at
+// `speed` times real time; every packet stamped up to the newest simulation time must come, in
+// order, stamped exactly on the simulation's clock.
+class LockStep : public ::testing::TestWithParam<double> {};
+
+TEST_P(LockStep, FramesFollowTheSimulationClockExactlyAtAnySpeed) {
+  const double speed = GetParam();
+  Daemon daemon("127.0.0.1", 0,
+                {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--pose-udp", "127.0.0.1:0",
+                 "--lock-step"});
+  UdpSocket lidar;
+  UdpSocket imu;
+  std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
+  SensorHttp& http = *client;
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.imu_port = imu.port();
+  request.lidar_mode = "1024x10";
+  const Metadata metadata = parse(sdk016_init_client(http, request));
+  EXPECT_FALSE(lidar.receive(std::chrono::milliseconds(300))) << "a packet before the simulation's time began";
+
+  constexpr int64_t kSimStart = 5'000'000'000;  // simulation time of the first pose
+  constexpr int64_t kStep = 10'000'000;         // 10 ms of simulation per pose
+  constexpr int kPoses = 81;                    // 0.8 s of simulation: 8 frames
+  const int64_t sim_end = kSimStart + (kPoses - 1) * kStep;
+  std::vector<Datagram> lidar_datagrams;
+  std::vector<Datagram> imu_datagrams;
+  {
+    std::atomic<bool> done{false};
+    std::thread receiver([&] {
+      while (!done || lidar.receive(std::chrono::milliseconds(0))) {
+        if (auto d = lidar.receive(std::chrono::milliseconds(20))) lidar_datagrams.push_back(std::move(*d));
+        while (auto d = imu.receive(std::chrono::milliseconds(0))) imu_datagrams.push_back(std::move(*d));
+      }
+    });
+    PoseSender sender("127.0.0.1", pose_udp_port(daemon.log()));
+    const Turn turn{kSimStart};
+    const auto period = std::chrono::nanoseconds(static_cast<int64_t>(static_cast<double>(kStep) / speed));
+    auto next = std::chrono::steady_clock::now();
+    for (int i = 0; i < kPoses; ++i) {
+      sender.send(pose_datagram(turn.at(kSimStart + i * kStep, static_cast<uint32_t>(i + 1))));
+      next += period;
+      std::this_thread::sleep_until(next);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the last burst arrives
+    done = true;
+    receiver.join();
+  }
+  client.reset();  // closes the keep-alive connection, so the daemon stops at once
+  EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+
+  // Every packet whose last column is stamped up to sim_end, none later, each exactly once.
+  const auto& f = metadata.format;
+  const int64_t frame_ns = 1'000'000'000 / f.fps;
+  const auto column_ns = [&](int m) { return static_cast<int64_t>(m) * 1'000'000'000 / (f.columns_per_frame * f.fps); };
+  size_t expected = 0;
+  for (int64_t frame = 0; kSimStart + frame * frame_ns <= sim_end; ++frame) {
+    for (int p = 0; p < f.columns_per_frame / f.columns_per_packet; ++p) {
+      expected += kSimStart + frame * frame_ns + column_ns((p + 1) * f.columns_per_packet - 1) <= sim_end;
+    }
+  }
+  EXPECT_EQ(lidar_datagrams.size(), expected);
+  ScanBatcher batcher(f);
+  std::vector<BatchedFrame> frames;
+  for (const Datagram& d : lidar_datagrams) {
+    if (auto frame = batcher.add(d.bytes)) frames.push_back(std::move(*frame));
+  }
+  ASSERT_EQ(frames.size(), 8u);  // frames 0-7 complete; frame 8's first columns at sim_end came too
+  expect_complete_scans(frames, metadata, 8);
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const Scan& scan = frames[k].scan;
+    for (int m = 0; m < scan.width; m += 97) {
+      ASSERT_EQ(static_cast<int64_t>(scan.timestamp_ns[static_cast<size_t>(m)]),
+                kSimStart + static_cast<int64_t>(k) * frame_ns + column_ns(m))
+          << "frame " << k << " column " << m;
+    }
+  }
+  // IMU samples every 10 ms of simulation from its start, on the same clock.
+  ASSERT_EQ(imu_datagrams.size(), static_cast<size_t>(kPoses));
+  for (size_t i = 0; i < imu_datagrams.size(); ++i) {
+    uint64_t sys_ts = 0;
+    std::memcpy(&sys_ts, imu_datagrams[i].bytes.data(), sizeof sys_ts);
+    EXPECT_EQ(static_cast<int64_t>(sys_ts), kSimStart + static_cast<int64_t>(i) * kStep);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Speeds, LockStep, ::testing::Values(0.3, 3.0), [](const auto& speed) {
+  return speed.param < 1 ? "SlowerThanRealTime" : "FasterThanRealTime";
+});
 
 }  // namespace
 }  // namespace lidartwin::e2e

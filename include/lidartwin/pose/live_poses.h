@@ -7,10 +7,13 @@
 #include <array>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "lidartwin/pose/pose_message.h"
 #include "lidartwin/pose/pose_source.h"
@@ -19,10 +22,11 @@ namespace lidartwin {
 
 // Which clock a message's time_ns is on.
 enum class PoseClock {
-  kSender,     // the sender's own clock: mapped to the host's by the smallest transit seen
-  kMonotonic,  // this host's CLOCK_MONOTONIC (the clock TIME_FROM_INTERNAL_OSC packets carry)
-  kRealtime,   // CLOCK_REALTIME (UTC ns; PTP- or NTP-disciplined hosts)
-  kTai,        // TAI ns, CLOCK_REALTIME + 37 s (what TIME_FROM_PTP_1588 packets carry)
+  kSender,      // the sender's own clock: mapped to the host's by the smallest transit seen
+  kMonotonic,   // this host's CLOCK_MONOTONIC (the clock TIME_FROM_INTERNAL_OSC packets carry)
+  kRealtime,    // CLOCK_REALTIME (UTC ns; PTP- or NTP-disciplined hosts)
+  kTai,         // TAI ns, CLOCK_REALTIME + 37 s (what TIME_FROM_PTP_1588 packets carry)
+  kSimulation,  // lock-step: the simulation's own time, which the sensor's clock follows
 };
 // What happens to columns later than the newest pose plus the extrapolation bound.
 enum class PoseTimeout {
@@ -71,6 +75,12 @@ class LivePoses final : public PoseSource {
 
   LivePoseStats stats() const;
   const LivePoseOptions& options() const { return options_; }
+
+  // Called with every accepted message, after it was added, on the thread that received it (the
+  // lock-step streamers advance their clocks with it). Returns an id for unsubscribe().
+  using Listener = std::function<void(const PoseMessage& message)>;
+  int subscribe(Listener listener);
+  void unsubscribe(int id);
   // Pose-source time of a steady-clock instant, and back.
   double source_time_s(int64_t steady_ns) const;
   int64_t steady_ns(double source_time_s) const;
@@ -80,6 +90,7 @@ class LivePoses final : public PoseSource {
     int64_t time_ns;  // message clock
     PoseMessage message;
   };
+  void add(const PoseMessage& message, int64_t arrival_steady_ns);  // throws PoseRejected
   int64_t offset_ns_locked(int64_t arrival_steady_ns, int64_t message_ns);
   double sample_time_s(const Sample& sample) const;  // pose-source time; mutex_ held
   Pose extrapolate(double ahead_s) const;            // from the newest sample; mutex_ held
@@ -90,6 +101,9 @@ class LivePoses final : public PoseSource {
   std::deque<Sample> samples_;  // by time, guarded by mutex_
   LivePoseStats stats_;         // guarded by mutex_
   std::optional<int64_t> sender_offset_ns_;
+  mutable std::mutex listeners_mutex_;
+  std::vector<std::pair<int, Listener>> listeners_;  // guarded by listeners_mutex_
+  int next_listener_ = 1;
 };
 
 }  // namespace lidartwin

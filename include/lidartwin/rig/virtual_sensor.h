@@ -79,6 +79,7 @@ class VirtualSensor {
   RigContext rig_;
   MountedPoses poses_;  // the rig's motion carrying this sensor
   bool per_column_poses_;
+  bool lock_step_;
   double max_range_m_;
   EffectChain chain_;
   uint64_t seed_;
@@ -86,6 +87,7 @@ class VirtualSensor {
   HttpServer http_;
   Streamer streamer_;
   int subscription_ = 0;
+  int pose_subscription_ = 0;
   std::jthread stats_pump_;
 };
 

@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include <asio.hpp>
 
@@ -36,6 +37,10 @@ struct StreamerOptions {
   // newest pose reaches it (frames_ahead still bounds the buffers); 0 casts as far ahead as it can.
   double cast_ahead_ms = 0.0;
   bool withhold_unposed = false;  // timeout policy "standby": packets with no posed column are not sent
+  // The simulator owns time (docs/live-poses.md, "Lock-step"): nothing is sent on the host's clock;
+  // advance_to(t) sends every packet stamped up to t. A config's frame 0 starts at the first t
+  // after it became active, and every timestamp (whatever timestamp_mode says) is on that clock.
+  bool lock_step = false;
 };
 
 // The forward model of a config (its beams, format, signal_multiplier, init_id, prod_sn) whose
@@ -67,6 +72,8 @@ class Streamer {
   // Any thread. A config with a new generation restarts the stream (new format, init_id and
   // frame_id sequence); streaming=false (STANDBY) stops it; port 0 turns that stream off.
   void apply(std::shared_ptr<const StreamConfig> config);
+  // Any thread. Lock-step only: the simulation's time is now time_ns.
+  void advance_to(int64_t time_ns);
   // Any thread: the stats as of the last once-a-second update. The send clock never waits for a
   // reader (it skips an update rather than block), so a reader may be up to a second behind.
   StreamStats stats() const;
@@ -76,7 +83,7 @@ class Streamer {
 
  private:
   void switch_to(std::shared_ptr<const StreamConfig> config);
-  void start_session(std::shared_ptr<const StreamConfig> config);
+  void start_session(std::shared_ptr<const StreamConfig> config, int64_t start_steady_ns, uint64_t origin_ns);
   void stop_session();
   void arm_stats_timer();
   void report_stats();
@@ -92,6 +99,7 @@ class Streamer {
   StreamStats snapshot_;                                     // guarded by snapshot_mutex_
   std::shared_ptr<const StreamConfig> config_;               // the one being streamed
   std::shared_ptr<streamer_detail::StreamSession> session_;  // null in STANDBY or when stopped
+  std::optional<uint64_t> lock_step_time_ns_;                // the newest simulation time, in lock-step
   int64_t next_stats_ns_ = 0;                                // steady clock
   uint64_t stats_ticks_ = 0;
   uint64_t warned_stalls_ = 0;
