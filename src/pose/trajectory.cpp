@@ -98,17 +98,33 @@ Pose Trajectory::at(double time_s) const {
 void Trajectory::save_tum(const std::filesystem::path& path) const { write_tum(path, samples_); }
 
 void write_tum(const std::filesystem::path& path, const std::vector<StampedPose>& poses) {
-  std::FILE* file = std::fopen(path.c_str(), "w");
-  if (file == nullptr) throw InputError(path.string() + ": cannot open for writing");
-  std::fprintf(file, "# timestamp tx ty tz qx qy qz qw\n");
-  for (const auto& [t, pose] : poses) {
-    const auto& p = pose.translation;
-    const auto& q = pose.rotation;
-    std::fprintf(file, "%.9f %.9f %.9f %.9f %.12f %.12f %.12f %.12f\n", t, p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
-                 q.w());
-  }
-  const bool failed = std::ferror(file) != 0;
-  if (std::fclose(file) != 0 || failed) throw InputError(path.string() + ": write failed");
+  TumWriter writer(path);
+  for (const auto& [t, pose] : poses) writer.write(t, pose);
+  writer.close();
+}
+
+TumWriter::TumWriter(const std::filesystem::path& path) : path_(path), file_(std::fopen(path.c_str(), "w")) {
+  if (file_ == nullptr) throw InputError(path.string() + ": cannot open for writing");
+  std::fprintf(file_, "# timestamp tx ty tz qx qy qz qw\n");
+}
+
+TumWriter::~TumWriter() {
+  if (file_ != nullptr) std::fclose(file_);
+}
+
+void TumWriter::write(double time_s, const Pose& pose) {
+  const auto& p = pose.translation;
+  const auto& q = pose.rotation;
+  std::fprintf(file_, "%.9f %.9f %.9f %.9f %.12f %.12f %.12f %.12f\n", time_s, p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
+               q.w());
+}
+
+void TumWriter::close() {
+  if (file_ == nullptr) return;
+  const bool failed = std::ferror(file_) != 0;
+  const bool closed = std::fclose(file_) == 0;
+  file_ = nullptr;
+  if (!closed || failed) throw InputError(path_.string() + ": write failed");
 }
 
 }  // namespace lidartwin

@@ -41,6 +41,8 @@ class RenderAhead {
   // The send clock is done with every frame up to `frame`: their slots are free, and the worker
   // skips (or abandons) any frame before frame + 1 that it has not rendered yet.
   void finished(uint64_t frame);
+  // The frame a finished packet was rendered into (its columns' poses and timestamps).
+  const EncodedFrame& encoded(uint64_t frame) const { return slots_[frame % slots_.size()]->encoded; }
   // Whether a finished packet has any observed column (false: every column lacked a pose).
   bool observed(uint64_t frame, size_t index) const;
   // What the pose source had heard when the packet was cast.

@@ -19,12 +19,13 @@ asio::steady_timer::time_point steady_time(int64_t ns) {
 }  // namespace
 
 StreamSession::StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
-                             std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model,
-                             SessionTiming timing, Options options)
+                             GroundTruth* ground_truth, std::shared_ptr<const StreamConfig> config,
+                             std::unique_ptr<ForwardModel> model, SessionTiming timing, Options options)
     : lidar_timer_(io),
       imu_timer_(io),
       sender_(sender),
       counters_(counters),
+      ground_truth_(ground_truth),
       config_(std::move(config)),
       model_(std::move(model)),
       timing_(timing),
@@ -54,6 +55,7 @@ void StreamSession::advance_to(uint64_t time_ns) {
     counters_.stats.columns_without_pose += model_->render(frame_, packet_index_, packet_index_ + 1, step_);
     if (sender_.send(config_->udp_dest, config_->udp_port_lidar, model_->packet(step_, packet_index_))) {
       ++counters_.stats.lidar_packets_sent;
+      if (ground_truth_) ground_truth_->packet_sent(*model_, frame_, packet_index_, step_);
     }
     advance_lidar();
   }
@@ -101,7 +103,8 @@ void StreamSession::on_lidar_deadline() {
 
 void StreamSession::send_lidar_packet(int64_t now_ns) {
   std::span<const uint8_t> bytes = render_->packet(frame_, packet_index_);
-  if (bytes.empty()) {
+  const bool stalled = bytes.empty();
+  if (stalled) {
     ++counters_.stats.render_stalls;
     bytes = model_->blank_packet(frame_, packet_index_, blank_);
   } else if (options_.withhold_unposed && !render_->observed(frame_, packet_index_)) {
@@ -111,6 +114,7 @@ void StreamSession::send_lidar_packet(int64_t now_ns) {
   if (sender_.send(config_->udp_dest, config_->udp_port_lidar, bytes)) {
     counters_.record_lidar_send(now_ns - lidar_deadline_ns());
     counters_.record_pose_use(render_->freshness(frame_, packet_index_), now_ns);
+    if (ground_truth_ && !stalled) ground_truth_->packet_sent(*model_, frame_, packet_index_, render_->encoded(frame_));
   }
 }
 

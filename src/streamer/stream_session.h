@@ -11,6 +11,7 @@
 
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/sensor/stream_config.h"
+#include "streamer/ground_truth.h"
 #include "streamer/render_ahead.h"
 #include "streamer/session_timing.h"
 #include "streamer/stream_counters.h"
@@ -45,7 +46,8 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     // The simulator owns time: no timers; advance_to() casts and sends what is due, in order.
     bool lock_step = false;
   };
-  StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
+  // ground_truth: where sent columns' poses are written (serve --record), or null.
+  StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters, GroundTruth* ground_truth,
                 std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model, SessionTiming timing,
                 Options options);
   void start();
@@ -72,6 +74,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   asio::steady_timer imu_timer_;
   UdpSender& sender_;
   StreamCounters& counters_;
+  GroundTruth* ground_truth_;
   std::shared_ptr<const StreamConfig> config_;
   std::unique_ptr<ForwardModel> model_;
   SessionTiming timing_;

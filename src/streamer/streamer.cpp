@@ -7,6 +7,7 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/metadata/metadata.h"
+#include "streamer/ground_truth.h"
 #include "streamer/stream_counters.h"
 #include "streamer/stream_session.h"
 #include "streamer/udp_sender.h"
@@ -53,6 +54,8 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
       options_(std::move(options)),
       sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
       counters_(std::make_unique<streamer_detail::StreamCounters>()),
+      ground_truth_(options_.record_dir.empty() ? nullptr
+                                                : std::make_unique<streamer_detail::GroundTruth>(options_.record_dir)),
       stats_timer_(io) {
   arm_stats_timer();
 }
@@ -138,8 +141,8 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config, int64_t
   session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
   session_options.withhold_unposed = options_.withhold_unposed;
   session_options.lock_step = options_.lock_step;
-  session_ = std::make_shared<streamer_detail::StreamSession>(io_, *sender_, *counters_, std::move(config),
-                                                              std::move(model), timing, session_options);
+  session_ = std::make_shared<streamer_detail::StreamSession>(
+      io_, *sender_, *counters_, ground_truth_.get(), std::move(config), std::move(model), timing, session_options);
   session_->start();
 }
 
@@ -155,6 +158,7 @@ void Streamer::stop() {
   stop_session();
   stats_timer_.cancel();
   sender_->close();
+  if (ground_truth_) ground_truth_->close();
   const auto& stats = counters_->stats;
   spdlog::info(
       "streamer: stopped after {} lidar packets ({} frames) and {} IMU packets; send lateness {}; "

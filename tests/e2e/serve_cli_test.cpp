@@ -13,6 +13,8 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 #include "lidartwin/pcap/pcap.h"
+#include "lidartwin/pose/pose.h"
+#include "support/record_capture.h"
 
 namespace lidartwin::e2e {
 namespace {
@@ -92,12 +94,21 @@ TEST(ServeRecord, CapturesEverySentPacketWithMetadata) {
   EXPECT_EQ(recorded.sensor_info.initialization_id, metadata.sensor_info.initialization_id);
   size_t lidar_packets = 0;
   size_t imu_packets = 0;
+  ScanBatcher recorded_frames(metadata.format);
+  std::vector<uint64_t> valid_column_times;
+  const auto keep_times = [&](const std::optional<BatchedFrame>& frame) {
+    if (!frame) return;
+    for (size_t m = 0; m < frame->scan.status.size(); ++m) {
+      if (frame->scan.status[m] & 1u) valid_column_times.push_back(frame->scan.timestamp_ns[m]);
+    }
+  };
   for (const auto& datagram : read_pcap(dir / "capture.pcap")) {
     EXPECT_EQ(datagram.src_ip, (std::array<uint8_t, 4>{127, 0, 0, 1}));
     EXPECT_NE(datagram.src_port, lidar.port());  // an ephemeral source port (1 item 8)
     if (datagram.dst_port == lidar.port()) {
       EXPECT_EQ(datagram.payload.size(), batcher.format().lidar_packet_size());
       ++lidar_packets;
+      keep_times(recorded_frames.add(datagram.payload));
     } else if (datagram.dst_port == imu.port()) {
       EXPECT_EQ(datagram.payload.size(), 48u);
       ++imu_packets;
@@ -105,6 +116,23 @@ TEST(ServeRecord, CapturesEverySentPacketWithMetadata) {
   }
   EXPECT_GE(lidar_packets, 3 * batcher.expected_packets());
   EXPECT_GE(imu_packets, 20u);
+
+  // Ground truth as `record` writes it: the pose each sent column was cast from, at its timestamp.
+  keep_times(recorded_frames.flush());
+  ASSERT_FALSE(valid_column_times.empty());
+  // Also there: the columns sent to 7502 under the factory config, before the client's reinit.
+  auto column_poses = test::read_poses(dir / "column_poses.tum");
+  std::erase_if(column_poses, [&](const auto& row) {
+    return row.time_s < static_cast<double>(valid_column_times.front()) * 1e-9 - 1e-9;
+  });
+  ASSERT_EQ(column_poses.size(), valid_column_times.size());
+  const Pose room = parse_pose(kRoomPose);
+  for (size_t i = 0; i < column_poses.size(); ++i) {
+    ASSERT_NEAR(column_poses[i].time_s, static_cast<double>(valid_column_times[i]) * 1e-9, 1e-9) << i;
+    ASSERT_NEAR((column_poses[i].translation - room.translation).norm(), 0.0, 1e-9);
+  }
+  const auto frame_poses = test::read_poses(dir / "poses.tum");
+  EXPECT_GE(frame_poses.size(), 3u);
 }
 
 TEST(ServeSignals, SigtermStopsTheDaemonWithExitCodeZero) {

@@ -1,6 +1,7 @@
 #pragma once
 // Poses of the sensor in the scene's world frame (Z up, metres; see scene/scene.h).
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -49,5 +50,21 @@ class Trajectory {
 };
 
 void write_tum(const std::filesystem::path& path, const std::vector<StampedPose>& poses);
+
+// A TUM file written row by row (a daemon's ground truth grows while it streams). Throws
+// InputError naming the file if it cannot be created; close() reports a failed write.
+class TumWriter {
+ public:
+  explicit TumWriter(const std::filesystem::path& path);
+  ~TumWriter();
+  TumWriter(const TumWriter&) = delete;
+  TumWriter& operator=(const TumWriter&) = delete;
+  void write(double time_s, const Pose& pose);
+  void close();
+
+ private:
+  std::filesystem::path path_;
+  std::FILE* file_ = nullptr;
+};
 
 }  // namespace lidartwin

@@ -22,14 +22,17 @@ namespace streamer_detail {
 class UdpSender;
 class StreamSession;
 struct StreamCounters;
+class GroundTruth;
 }  // namespace streamer_detail
 
 struct StreamerOptions {
   std::array<uint8_t, 4> source_address{127, 0, 0, 1};  // the sensor's own address (item 8)
-  std::filesystem::path record_dir;                     // non-empty: capture.pcap + metadata.json of what is sent
-  int frames_ahead = 2;                                 // how far casting may run ahead of the send clock
-  double start_delay_s = 0.25;                          // from a reinit to frame 0: time to cast the first packets
-  int render_nice = 0;  // nice value of the render-ahead worker (the send clock keeps 0)
+  // Non-empty: capture.pcap + metadata.json of what is sent, and its ground truth poses.tum and
+  // column_poses.tum (as `record` writes them).
+  std::filesystem::path record_dir;
+  int frames_ahead = 2;         // how far casting may run ahead of the send clock
+  double start_delay_s = 0.25;  // from a reinit to frame 0: time to cast the first packets
+  int render_nice = 0;          // nice value of the render-ahead worker (the send clock keeps 0)
   // The send clock wakes this early and spins to each lidar deadline: a thread's wake-up takes
   // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10).
   int spin_us = 100;
@@ -94,6 +97,7 @@ class Streamer {
   StreamerOptions options_;
   std::unique_ptr<streamer_detail::UdpSender> sender_;
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
+  std::unique_ptr<streamer_detail::GroundTruth> ground_truth_;  // with record_dir
   asio::steady_timer stats_timer_;
   mutable std::mutex snapshot_mutex_;
   StreamStats snapshot_;                                     // guarded by snapshot_mutex_
