@@ -60,6 +60,13 @@ LivePoseOptions live_pose_options(const ServeFlags& flags) {
   options.clock = flags.lock_step ? PoseClock::kSimulation : *clock;
   options.timeout = *timeout;
   options.max_extrapolation_s = flags.pose_extrapolate_ms * 1e-3;
+  // A packet cast cast-ahead before it is due needs poses that far past the newest one (plus the
+  // time between poses): with less extrapolation every packet would lack a pose.
+  if (!flags.lock_step && options.timeout != PoseTimeout::kHold && flags.cast_ahead_ms >= flags.pose_extrapolate_ms) {
+    throw InputError("--cast-ahead-ms " + fmt::format("{}", flags.cast_ahead_ms) +
+                     ": must be less than --pose-extrapolate-ms (" + fmt::format("{}", flags.pose_extrapolate_ms) +
+                     "): columns are cast that long before the newest pose can reach them");
+  }
   return options;
 }
 

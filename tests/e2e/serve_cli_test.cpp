@@ -57,6 +57,28 @@ INSTANTIATE_TEST_SUITE_P(
 
 // A rig's sensors in containers all bind 0.0.0.0, so the address cannot tell their serials apart:
 // --serial-number sets the one the metadata reports and every packet carries (4.3).
+// Live-pose flags, refused before the daemon binds anything (no --pose: the poses arrive live).
+class ServeLiveFlags : public ::testing::TestWithParam<BadFlag> {};
+
+TEST_P(ServeLiveFlags, RefusesABadFlagNamingIt) {
+  const auto [code, output] = run_cli("serve --http-port 0 --profile os1-32 --threads 1 --scene '" +
+                                      room_scene().string() + "' " + GetParam().args);
+  EXPECT_NE(code, 0) << output;
+  EXPECT_NE(output.find(GetParam().named), std::string::npos) << output;
+}
+
+INSTANTIATE_TEST_SUITE_P(Flags, ServeLiveFlags,
+                         ::testing::Values(BadFlag{"--pose-udp 1.2.3:900", "\"1.2.3\" is not an IPv4 address"},
+                                           BadFlag{"--pose-udp 127.0.0.1:70000",
+                                                   "--pose-udp 127.0.0.1:70000: the port"},
+                                           BadFlag{"--live-poses --pose-clock gps", "--pose-clock"},
+                                           BadFlag{"--live-poses --pose-timeout pause", "--pose-timeout"},
+                                           BadFlag{"--live-poses --pose-extrapolate-ms 10 --cast-ahead-ms 10",
+                                                   "--cast-ahead-ms 10: must be less"},
+                                           BadFlag{"--live-poses --pose '0 0 1 0 0 0 1'", "leave out --pose"},
+                                           BadFlag{"--lock-step --pose-clock monotonic", "--pose-clock"},
+                                           BadFlag{"--live-poses --mount '1 2 3'", "--mount"}));
+
 TEST(ServeIdentity, SerialNumberFlagIsTheSensorsProdSn) {
   UdpSocket lidar;
   auto args = room_args();

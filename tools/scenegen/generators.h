@@ -19,9 +19,12 @@ struct StampedPose {
 
 GlbWriter build_plant();
 GlbWriter build_calibration_hall();
+GlbWriter build_yard();
 
 // The closed drone loop around the plant (plant_flight.cpp).
 std::vector<StampedPose> plant_inspection_flight();
+// The SLAM lap over the yard, from rest on the pad to a hover over it (yard_flight.cpp).
+std::vector<StampedPose> yard_flight();
 // The static recording pose in the calibration hall: on the centre line, 4 m above the floor,
 // looking down the hall (+x).
 StampedPose calibration_hall_pose();

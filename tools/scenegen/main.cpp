@@ -46,6 +46,27 @@ void write_hall(const fs::path& dir) {
             "lidartwin-scenegen: static recording pose in scenes/calibration_hall.glb, world_from_sensor");
 }
 
+void write_yard(const fs::path& dir) {
+  const GlbWriter yard = build_yard();
+  yard.write(dir / "yard.glb");
+  report(dir / "yard.glb", yard.triangle_count());
+  const std::vector<StampedPose> flight = yard_flight();
+  // On the pad the drone is near the ground by design: check the clearance once it is airborne.
+  const std::vector<StampedPose> airborne(flight.begin() + 100, flight.end() - 100);
+  const Clearance clearance = min_clearance(dir / "yard.glb", airborne, 10.0);
+  if (clearance.distance_m < 3.0) {
+    const Eigen::Vector3d& p = clearance.where;
+    throw std::runtime_error("yard_flight: the path passes " + std::to_string(clearance.distance_m) +
+                             " m from the scene at (" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " +
+                             std::to_string(p.z()) + ")");
+  }
+  write_tum(dir / "yard_flight.tum", flight,
+            "lidartwin-scenegen: SLAM lap over scenes/yard.glb from rest on the pad, world_from_sensor (Ouster "
+            "sensor frame), 4 m/s at 5 m, 20 Hz");
+  std::printf("%s: %zu poses over %.1f s, clearance >= %.1f m when airborne\n", (dir / "yard_flight.tum").c_str(),
+              flight.size(), flight.back().time_s, clearance.distance_m);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -58,6 +79,7 @@ int main(int argc, char** argv) {
     fs::create_directories(dir);
     write_hall(dir);
     write_plant(dir);
+    write_yard(dir);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "lidartwin-scenegen: %s\n", e.what());
     return 1;

@@ -10,12 +10,8 @@
 #include "plant_assets.h"
 
 namespace lidartwin::scenegen {
-namespace {
 
-constexpr double kPi = std::numbers::pi;
-using V = Eigen::Vector3f;
-
-PlantMaterials add_materials(GlbWriter& out) {
+PlantMaterials add_plant_materials(GlbWriter& out) {
   const auto add = [&out](const char* name, double rho, std::array<double, 3> color, double specular = 0.0,
                           bool retro = false) {
     return out.add_material({name, rho, retro, specular, color});
@@ -49,6 +45,11 @@ void place(GlbWriter& out, const Parts& parts, const std::string& name, const st
     out.add_instance(mesh, name + "_" + std::to_string(i), where[i].head<3>(), where[i].w());
   }
 }
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+using V = Eigen::Vector3f;
 
 // Ground, roads, the tank-farm bund and the pads under the process area.
 Parts grounds(const PlantMaterials& m) {
@@ -132,7 +133,7 @@ void buildings_and_furniture(GlbWriter& out, const PlantMaterials& m) {
 
 GlbWriter build_plant() {
   GlbWriter out;
-  const PlantMaterials m = add_materials(out);
+  const PlantMaterials m = add_plant_materials(out);
   place(out, grounds(m), "grounds", {{0, 0, 0, 0}});
   tank_farm(out, m);
   process_area(out, m);

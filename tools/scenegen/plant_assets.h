@@ -2,6 +2,7 @@
 // Building blocks of the industrial plant (scenes/plant.glb), each in its own frame: origin at the
 // centre of its footprint on the ground, z up. plant.cpp places them.
 #include <cstdint>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -18,6 +19,8 @@ struct PlantMaterials {
   int wall_sheet, roof_sheet, glass, door;
   int sign_retro, sign_post;
 };
+
+class GlbWriter;
 
 // Triangles grouped by material, one glTF primitive each.
 class Parts {
@@ -46,5 +49,10 @@ Parts building(const PlantMaterials& m, const Eigen::Vector3f& size);
 Parts fence(const PlantMaterials& m, const Eigen::Vector2f& half, float gate);
 Parts sign(const PlantMaterials& m);
 Parts light_pole(const PlantMaterials& m);
+
+// The plant's materials, added to a scene (plant.cpp; the yard uses them too).
+PlantMaterials add_plant_materials(GlbWriter& out);
+// One mesh made of `parts`, placed at each (x, y, z, yaw).
+void place(GlbWriter& out, const Parts& parts, const std::string& name, const std::vector<Eigen::Vector4d>& where);
 
 }  // namespace lidartwin::scenegen
