@@ -130,6 +130,74 @@ TEST_F(RecordGeometry, ImuAtRestReadsGravity) {
   }
 }
 
+// The IMU sits at imu_to_sensor_transform (6.253, -11.775, 7.645) mm from the sensor's origin: spun
+// at 360 deg/s about the sensor's z axis it reads the rate and, on its 13 mm lever arm, a
+// centripetal force of omega^2 r (53 mg), exactly (an --ideal recording has an exact IMU).
+TEST_F(RecordGeometry, ImuReadsTheKnownMotionAtItsOwnPosition) {
+  const double omega = 2 * std::numbers::pi;  // rad/s
+  const auto spin = dir_ / "spin.tum";
+  {
+    std::ofstream tum(spin);
+    tum.precision(17);
+    for (int k = 0; k <= 60; ++k) {  // 3 s, three whole turns: the looped trajectory stays smooth
+      const double t = 0.05 * k;
+      const Eigen::Quaterniond q(Eigen::AngleAxisd(omega * t, Eigen::Vector3d::UnitZ()));
+      tum << t << " 0 0 4 " << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+    }
+  }
+  const auto out = record("spin", "--profile os1-64 --mode 1024x10 --trajectory " + spin.string());
+  const auto capture = test::decode_capture(out);
+  ASSERT_EQ(capture.imu.size(), 21u);
+  const Eigen::Vector3d r(6.253e-3, -11.775e-3, 7.645e-3);  // the profile's imu_to_sensor_transform
+  const double g = 9.80665;
+  const Eigen::Vector3d expected_g(-omega * omega * r.x() / g, -omega * omega * r.y() / g, 1.0);
+  for (const ImuSample& s : capture.imu) {
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(static_cast<double>(s.accel_g[static_cast<size_t>(i)]), expected_g[i], 1e-4) << "axis " << i;
+    }
+    EXPECT_NEAR(static_cast<double>(s.gyro_deg_s[2]), 360.0, 1e-3);
+    EXPECT_NEAR(static_cast<double>(s.gyro_deg_s[0]), 0.0, 1e-4);
+    EXPECT_NEAR(static_cast<double>(s.gyro_deg_s[1]), 0.0, 1e-4);
+  }
+}
+
+// Without --ideal the datasheet profile's IMU errors are in the packets: at rest, white noise of
+// density / sqrt(10 ms) on every axis (2.3 mg, 0.15 deg/s) and the gyro's g-sensitivity offset on
+// the axis gravity acts along (0.1 deg/s/g); the same seed gives the same packets.
+TEST_F(RecordGeometry, ImuNoiseFollowsTheProfile) {
+  const auto noisy = [&](const std::string& name) {
+    const auto out = dir_ / name;
+    EXPECT_EQ(test::run_lidartwin("record --scene " + kHall.string() + " --frames 50 --seed 7 --profile os1-64 " +
+                                  "--mode 512x10 " + kHallPose + " --out " + out.string()),
+              0);
+    return test::decode_capture(out).imu;
+  };
+  const auto imu = noisy("imu_noisy");
+  ASSERT_EQ(imu.size(), 501u);
+  const auto moments = [&](auto value) {
+    double sum = 0, sum2 = 0;
+    for (const ImuSample& s : imu) {
+      const double v = value(s);
+      sum += v;
+      sum2 += v * v;
+    }
+    const double mean = sum / static_cast<double>(imu.size());
+    return std::pair{mean, std::sqrt(sum2 / static_cast<double>(imu.size()) - mean * mean)};
+  };
+  const double accel_sigma_g = 2.2555e-3 / std::sqrt(0.01) / 9.80665;
+  const double gyro_sigma_dps = 2.618e-4 / std::sqrt(0.01) * 180 / std::numbers::pi;
+  for (size_t axis = 0; axis < 3; ++axis) {
+    const auto [accel_mean, accel_sd] = moments([axis](const ImuSample& s) { return double{s.accel_g[axis]}; });
+    const auto [gyro_mean, gyro_sd] = moments([axis](const ImuSample& s) { return double{s.gyro_deg_s[axis]}; });
+    EXPECT_NEAR(accel_sd, accel_sigma_g, 0.15 * accel_sigma_g) << "axis " << axis;
+    EXPECT_NEAR(gyro_sd, gyro_sigma_dps, 0.15 * gyro_sigma_dps) << "axis " << axis;
+    EXPECT_NEAR(accel_mean, axis == 2 ? 1.0 : 0.0, 5 * accel_sigma_g / std::sqrt(501.0) + 1e-4) << "axis " << axis;
+    const double g_sensitivity_dps = axis == 2 ? 1.78e-4 * 9.80665 * 180 / std::numbers::pi : 0.0;
+    EXPECT_NEAR(gyro_mean, g_sensitivity_dps, 5 * gyro_sigma_dps / std::sqrt(501.0) + 0.01) << "axis " << axis;
+  }
+  EXPECT_EQ(noisy("imu_noisy_again"), imu);
+}
+
 TEST_F(RecordGeometry, Os1PointsLieOnTheHallInLegacyPackets) {
   const auto out = record("os1", "--profile os1-64 --mode 2048x10 --udp-profile LEGACY " + kHallPose);
   expect_on_surfaces(check(out, static_pose(out), 0.3, 100.0), 2 * 2048 * 64);

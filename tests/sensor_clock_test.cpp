@@ -180,5 +180,30 @@ TEST(ImuModel, ReadsTheTrajectorysRotationRate) {
   EXPECT_NEAR(std::hypot(sample.accel_g[0], sample.accel_g[1]), 0.0, 1e-5);
 }
 
+// Bias random walk alone: consecutive samples differ by walk * sqrt(period) * N(0, 1), so their
+// differences have that spread and the bias wanders; asking out of order gives the same values.
+TEST(ImuErrors, BiasesWalkAndEverySampleIsAPureFunctionOfSeedAndIndex) {
+  ImuNoise noise;
+  noise.accelerometer_random_walk = 0.01;
+  noise.gyroscope_random_walk = 0.001;
+  const ImuErrors errors(noise, 42, 0.01);
+  const ImuReading exact;
+  std::vector<ImuReading> readings;
+  for (uint64_t i = 0; i < 4000; ++i) readings.push_back(errors.apply(i, exact));
+  double sum2_accel = 0, sum2_gyro = 0;
+  for (size_t i = 1; i < readings.size(); ++i) {
+    sum2_accel += (readings[i].specific_force - readings[i - 1].specific_force).squaredNorm();
+    sum2_gyro += (readings[i].angular_rate - readings[i - 1].angular_rate).squaredNorm();
+  }
+  const double n = 3.0 * static_cast<double>(readings.size() - 1);
+  EXPECT_NEAR(std::sqrt(sum2_accel / n), 0.01 * 0.1, 0.05 * 0.001);
+  EXPECT_NEAR(std::sqrt(sum2_gyro / n), 0.001 * 0.1, 0.05 * 0.0001);
+  EXPECT_EQ(readings[0].specific_force, Eigen::Vector3d::Zero());  // the walk starts at zero
+  const ImuErrors again(noise, 42, 0.01);
+  EXPECT_EQ(again.apply(3000, exact).specific_force, readings[3000].specific_force);
+  EXPECT_EQ(again.apply(17, exact).angular_rate, readings[17].angular_rate);  // backwards
+  EXPECT_NE(ImuErrors(noise, 43, 0.01).apply(17, exact).angular_rate, readings[17].angular_rate);
+}
+
 }  // namespace
 }  // namespace lidartwin

@@ -127,7 +127,7 @@ int run_record(const RecordFlags& flags) {
                                   : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   const ProgressBar bar(flags.frames, metadata.format.fps);
   record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
-          flags.out},
+          flags.out, flags.ideal ? ImuNoise{} : profile.imu},
          [&bar](int done) { bar.update(done); });
   return 0;
 }
@@ -160,7 +160,7 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}))
       ->capture_default_str();
   sub->add_flag("--ideal", flags->ideal,
-                "no noise or dropout: ideal ranges on the wire's step, within the profile's range");
+                "no noise or dropout: ideal ranges on the wire's step, within the profile's range, and an exact IMU");
   sub->callback([&run, flags] { run = [flags] { return run_record(*flags); }; });
 }
 

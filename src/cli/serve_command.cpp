@@ -97,6 +97,7 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorProfile& pr
   setup.seed = flags.seed;
   setup.mounting = mounting(flags);
   setup.per_column_poses = flags.per_column_poses;
+  setup.imu_noise = profile.imu;
   if (live(flags)) {
     setup.streamer.lock_step = flags.lock_step;
     setup.streamer.cast_ahead_ms = flags.cast_ahead_ms;

@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <cassert>
+#include <optional>
 
 #include "lidartwin/frame/imu_model.h"
 #include "lidartwin/frame/packet_plan.h"
@@ -17,6 +18,7 @@ struct ForwardModel::Impl {
         init_id(model_setup.init_id),
         prod_sn(model_setup.prod_sn),
         packets(model_setup.render.format),  // validates the format first
+        sensor_from_imu(lidartwin::sensor_from_imu(model_setup.render.beams.imu_to_sensor)),
         renderer(scene, std::move(model_setup.render), pool),
         firsts(packets_to_send(packets.format())),
         per_column_poses(model_setup.per_column_poses) {
@@ -102,15 +104,22 @@ struct ForwardModel::Impl {
   uint32_t init_id;
   uint64_t prod_sn;
   PacketFormat packets;
+  Pose sensor_from_imu;
   FrameRenderer renderer;
   std::vector<int> firsts;
   std::vector<int> index_of_first;  // packet slot in the frame -> index in firsts, -1 = not sent
   uint32_t valid_status = 1;
   bool per_column_poses = true;
+  std::optional<ImuErrors> imu_errors;  // none: an exact IMU
 };
 
 ForwardModel::ForwardModel(const Scene& scene, const PoseSource& poses, ForwardModelSetup setup, WorkerPool& pool)
-    : impl_(std::make_unique<Impl>(scene, poses, std::move(setup), pool)) {}
+    : impl_(nullptr) {
+  const ImuNoise imu_noise = setup.imu_noise;
+  const uint64_t seed = setup.render.seed;
+  impl_ = std::make_unique<Impl>(scene, poses, std::move(setup), pool);
+  if (imu_noise.any()) impl_->imu_errors.emplace(imu_noise, seed, static_cast<double>(kImuPeriodNs) * 1e-9);
+}
 
 ForwardModel::~ForwardModel() = default;
 
@@ -176,7 +185,9 @@ std::span<const uint8_t> ForwardModel::blank_packet(uint64_t frame, size_t index
 
 void ForwardModel::imu_packet(uint64_t sample, std::span<uint8_t, kLegacyImuPacketSize> out) const {
   const SensorClock& clock = impl_->clock;
-  encode_legacy_imu(imu_sample(impl_->poses, clock.imu_pose_time_s(sample), clock.imu_timestamp_ns(sample)), out);
+  ImuReading reading = imu_reading(impl_->poses, clock.imu_pose_time_s(sample), impl_->sensor_from_imu);
+  if (impl_->imu_errors) reading = impl_->imu_errors->apply(sample, reading);
+  encode_legacy_imu(to_imu_sample(reading, clock.imu_timestamp_ns(sample)), out);
 }
 
 }  // namespace lidartwin

@@ -126,13 +126,31 @@ void check_prod_line(const std::string& prod_line, size_t rows, const Location& 
   }
 }
 
+ImuNoise read_imu(const json& value, const Location& at) {
+  const ObjectReader reader(value, at,
+                            {"accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
+                             "gyroscope_random_walk", "gyroscope_g_sensitivity", "source"});
+  const Range non_negative{0.0, 10.0};
+  ImuNoise imu;
+  const auto read = [&](std::string_view key, double& out) {
+    if (const json* v = reader.find(key)) out = read_number(*v, at.child(key), non_negative);
+  };
+  read("accelerometer_noise_density", imu.accelerometer_noise_density);
+  read("accelerometer_random_walk", imu.accelerometer_random_walk);
+  read("gyroscope_noise_density", imu.gyroscope_noise_density);
+  read("gyroscope_random_walk", imu.gyroscope_random_walk);
+  read("gyroscope_g_sensitivity", imu.gyroscope_g_sensitivity);
+  if (const json* v = reader.find("source")) read_string(*v, at.child("source"));
+  return imu;
+}
+
 }  // namespace
 
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source) {
   const Location root{std::string(source), ""};
   const ObjectReader top(document, root,
                          {"prod_line", "prod_pn", "source", "min_range_m", "max_range_m", "beam_divergence_rad",
-                          "lidar_modes", "beam_intrinsics", "effects", "fit"});  // fit: `lidartwin fit`'s notes
+                          "lidar_modes", "beam_intrinsics", "effects", "imu", "fit"});  // fit: `lidartwin fit`'s notes
   SensorProfile profile;
   profile.name = std::filesystem::path(source).stem().string();
   profile.prod_line = read_string(top.at("prod_line", "a string such as \"OS-1-64\""), root.child("prod_line"));
@@ -151,6 +169,7 @@ SensorProfile parse_profile(const nlohmann::json& document, std::string_view sou
   profile.beams = read_beams(top.at("beam_intrinsics", "an object"), root.child("beam_intrinsics"), profile.prod_line);
   check_prod_line(profile.prod_line, profile.beams.altitude_deg.size(), root.child("prod_line"));
   profile.effects = read_effects(top.at("effects", "an array of effects"), root.child("effects"));
+  if (const json* imu = top.find("imu")) profile.imu = read_imu(*imu, root.child("imu"));
   return profile;
 }
 

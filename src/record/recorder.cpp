@@ -76,6 +76,7 @@ ForwardModelSetup model_setup(const Recording& recording) {
   setup.origin_ns = static_cast<uint64_t>(std::llround(recording.poses.start_s() * 1e9));
   setup.init_id = metadata.sensor_info.initialization_id;
   setup.prod_sn = std::stoull(metadata.sensor_info.prod_sn);
+  setup.imu_noise = recording.imu_noise;
   return setup;
 }
 

@@ -23,6 +23,7 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
       poses_(rig.poses, setup.mounting),
       per_column_poses_(setup.per_column_poses),
       lock_step_(setup.streamer.lock_step),
+      imu_noise_(setup.imu_noise),
       max_range_m_(setup.max_range_m),
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
@@ -52,6 +53,7 @@ std::unique_ptr<ForwardModel> VirtualSensor::make_model(const StreamConfig& conf
   setup.init_id = config.init_id;
   setup.prod_sn = config.prod_sn;
   setup.per_column_poses = per_column_poses_;
+  setup.imu_noise = imu_noise_;
   return std::make_unique<ForwardModel>(rig_.scene, poses_, std::move(setup), rig_.pool);
 }
 

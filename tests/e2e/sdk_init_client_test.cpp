@@ -75,9 +75,12 @@ TEST(InitClientImu, ImuPacketsArriveAtOneHundredHertz) {
   for (size_t i = 1; i < samples.size(); ++i) {
     EXPECT_EQ(samples[i].sys_ts_ns - samples[i - 1].sys_ts_ns, 10'000'000u) << "IMU packet " << i;
   }
+  // At rest: +1 g up and no rotation, within the profile's IMU noise (2.3 mg and 0.15 deg/s per
+  // axis, and a 0.1 deg/s g-sensitivity offset on z; tests/cli_record_geometry_test.cpp checks
+  // the statistics).
   for (const auto& s : samples) {
-    EXPECT_NEAR(s.accel_g[2], 1.0f, 1e-3f);
-    EXPECT_NEAR(std::hypot(s.gyro_deg_s[0], s.gyro_deg_s[1], s.gyro_deg_s[2]), 0.0, 1e-3);
+    EXPECT_NEAR(s.accel_g[2], 1.0f, 0.015f);
+    EXPECT_NEAR(std::hypot(s.gyro_deg_s[0], s.gyro_deg_s[1], s.gyro_deg_s[2]), 0.0, 1.2);
     EXPECT_GT(s.accel_ts_ns, 0u);
   }
   EXPECT_EQ(daemon.stop(), 0) << daemon.log();

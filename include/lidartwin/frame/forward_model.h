@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lidartwin/frame/frame_renderer.h"
+#include "lidartwin/frame/imu_model.h"
 #include "lidartwin/frame/sensor_clock.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/packet/imu_packet.h"
@@ -31,6 +32,8 @@ struct ForwardModelSetup {
   // Each column cast from the pose at its own time (as a sensor moves while it spins); false casts
   // every column of a frame from the frame's first column's pose, to show what motion distortion does.
   bool per_column_poses = true;
+  // The IMU's errors (the profile's "imu"; zero: exact), drawn from render.seed.
+  ImuNoise imu_noise;
 };
 
 // A frame's worth of output, owned and reused by the caller (no allocation per frame).
@@ -76,7 +79,8 @@ class ForwardModel {
   std::span<const uint8_t> blank_packet(uint64_t frame, size_t index, EncodedFrame& scratch) const;
 
   // IMU sample i (100 Hz from the clock's origin), read from the motion at clock.imu_pose_time_s(i)
-  // and stamped clock.imu_timestamp_ns(i), as a LEGACY IMU packet (5.1).
+  // at the IMU's position and in its axes (imu_to_sensor_transform), with the profile's IMU errors,
+  // stamped clock.imu_timestamp_ns(i), as a LEGACY IMU packet (5.1).
   void imu_packet(uint64_t sample, std::span<uint8_t, kLegacyImuPacketSize> out) const;
 
  private:

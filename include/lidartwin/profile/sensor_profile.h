@@ -11,6 +11,20 @@
 
 namespace lidartwin {
 
+// The IMU's errors in Kalibr's continuous-time convention (imu.yaml): white noise densities and
+// bias random walks per axis, and the gyro's sensitivity to specific force. All zero: exact.
+struct ImuNoise {
+  double accelerometer_noise_density = 0.0;  // m/s^2/sqrt(Hz)
+  double accelerometer_random_walk = 0.0;    // m/s^3/sqrt(Hz)
+  double gyroscope_noise_density = 0.0;      // rad/s/sqrt(Hz)
+  double gyroscope_random_walk = 0.0;        // rad/s^2/sqrt(Hz)
+  double gyroscope_g_sensitivity = 0.0;      // rad/s per m/s^2 of specific force, each axis
+  bool any() const {
+    return accelerometer_noise_density > 0 || accelerometer_random_walk > 0 || gyroscope_noise_density > 0 ||
+           gyroscope_random_walk > 0 || gyroscope_g_sensitivity > 0;
+  }
+};
+
 struct SensorProfile {
   std::string name;       // file stem, e.g. "os1-64"
   std::string prod_line;  // what sensor_info.prod_line reports, e.g. "OS-1-64"
@@ -22,6 +36,7 @@ struct SensorProfile {
   double beam_divergence_rad = 0.0023;  // FWHM
   std::vector<std::string> lidar_modes{"512x10", "512x20", "1024x10", "1024x20", "2048x10"};
   nlohmann::json effects = nlohmann::json::array();  // the effect chain, parsed by effects/
+  ImuNoise imu;                                      // "imu"; absent: an exact IMU
 };
 
 // Loads profiles/<name>.json (or a path to a .json file). Unknown keys, missing keys and values

@@ -9,6 +9,7 @@
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/pose/pose_source.h"
+#include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/scene/scene.h"
 
 namespace lidartwin {
@@ -23,6 +24,7 @@ struct Recording {
   int threads = 0;  // 0 = all cores
   int frames = 1;
   std::filesystem::path out_dir;
+  ImuNoise imu_noise = {};  // the profile's IMU errors (zero: exact)
 };
 
 // Times: the sensor clock's origin is the pose source's start t0 = poses.start_s(): frame k starts

@@ -46,6 +46,7 @@ struct VirtualSensorSetup {
   uint64_t seed = 0;             // noise seed
   Pose mounting;                 // vehicle_from_sensor: where the rig's motion carries this sensor
   bool per_column_poses = true;  // false: every column of a frame cast from the frame's first pose
+  ImuNoise imu_noise;            // the profile's IMU errors
 };
 
 class VirtualSensor {
@@ -80,6 +81,7 @@ class VirtualSensor {
   MountedPoses poses_;  // the rig's motion carrying this sensor
   bool per_column_poses_;
   bool lock_step_;
+  ImuNoise imu_noise_;
   double max_range_m_;
   EffectChain chain_;
   uint64_t seed_;
