@@ -32,23 +32,6 @@ constexpr double kRateRadS = std::numbers::pi / 2;  // a 90 deg/s turn
 constexpr double kSpeedMS = 0.5;                    // while creeping along x
 constexpr double kHalfX = 4.0, kHalfY = 3.0, kHeight = 3.0;
 
-// An empty 8 x 6 x 3 m room: every point the sensor sees lies on one of six known planes.
-std::filesystem::path empty_room() {
-  const auto path = scratch_dir() / "empty_room.glb";
-  if (std::filesystem::exists(path)) return path;
-  using test::quad;
-  const float x0 = -4, x1 = 4, y0 = -3, y1 = 3, z0 = 0, z1 = 3;
-  test::write_glb(path, {
-                            quad("floor", {x0, y0, z0}, {x1, y0, z0}, {x1, y1, z0}, {x0, y1, z0}, 0.3f),
-                            quad("ceiling", {x0, y0, z1}, {x0, y1, z1}, {x1, y1, z1}, {x1, y0, z1}, 0.6f),
-                            quad("wall_north", {x0, y1, z0}, {x1, y1, z0}, {x1, y1, z1}, {x0, y1, z1}, 0.5f),
-                            quad("wall_south", {x0, y0, z0}, {x0, y0, z1}, {x1, y0, z1}, {x1, y0, z0}, 0.5f),
-                            quad("wall_east", {x1, y0, z0}, {x1, y0, z1}, {x1, y1, z1}, {x1, y1, z0}, 0.8f),
-                            quad("wall_west", {x0, y0, z0}, {x0, y1, z0}, {x0, y1, z1}, {x0, y0, z1}, 0.2f),
-                        });
-  return path;
-}
-
 double distance_to_room(const Eigen::Vector3d& p) {
   return std::min({std::abs(p.x() - kHalfX), std::abs(p.x() + kHalfX), std::abs(p.y() - kHalfY),
                    std::abs(p.y() + kHalfY), std::abs(p.z()), std::abs(p.z() - kHeight)});
@@ -117,7 +100,7 @@ struct LiveRun {
 };
 
 LiveRun fly(bool per_column_poses, bool bad_messages) {
-  std::vector<std::string> args{"--profile",  "os1-32",      "--scene",      empty_room().string(),
+  std::vector<std::string> args{"--profile",  "os1-32",      "--scene",      empty_room_scene().string(),
                                 "--threads",  "1",           "--seed",       "3",
                                 "--pose-udp", "127.0.0.1:0", "--pose-clock", "monotonic"};
   if (!per_column_poses) args.push_back("--no-per-column-poses");
@@ -240,7 +223,7 @@ json pose_json(uint32_t sequence, int64_t time_ns, double qw = 1.0) {
 
 TEST(LivePosesHttp, PostedPosesAreTakenAndBadOnesRefusedWithTheReason) {
   Daemon daemon("127.0.0.1", 0,
-                {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--live-poses"});
+                {"--profile", "os1-32", "--scene", empty_room_scene().string(), "--threads", "1", "--live-poses"});
   std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
   SensorHttp& http = *client;
   const int64_t now = monotonic_ns();
@@ -287,9 +270,9 @@ TEST(LivePosesHttp, ADaemonFlyingATrajectoryHasNoPoseEndpoint) {
 // Timeout policy "standby": no lidar packet goes out until poses come, and none once they stop.
 TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
   Daemon daemon("127.0.0.1", 0,
-                {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--pose-udp", "127.0.0.1:0",
-                 "--pose-clock", "monotonic", "--pose-timeout", "standby", "--pose-extrapolate-ms", "100",
-                 "--cast-ahead-ms", "20"});
+                {"--profile", "os1-32", "--scene", empty_room_scene().string(), "--threads", "1", "--pose-udp",
+                 "127.0.0.1:0", "--pose-clock", "monotonic", "--pose-timeout", "standby", "--pose-extrapolate-ms",
+                 "100", "--cast-ahead-ms", "20"});
   UdpSocket lidar;
   std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
   SensorHttp& http = *client;
@@ -325,8 +308,8 @@ class LockStep : public ::testing::TestWithParam<double> {};
 TEST_P(LockStep, FramesFollowTheSimulationClockExactlyAtAnySpeed) {
   const double speed = GetParam();
   Daemon daemon("127.0.0.1", 0,
-                {"--profile", "os1-32", "--scene", empty_room().string(), "--threads", "1", "--pose-udp", "127.0.0.1:0",
-                 "--lock-step"});
+                {"--profile", "os1-32", "--scene", empty_room_scene().string(), "--threads", "1", "--pose-udp",
+                 "127.0.0.1:0", "--lock-step"});
   UdpSocket lidar;
   UdpSocket imu;
   std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());

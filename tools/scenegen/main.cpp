@@ -18,19 +18,24 @@ void report(const fs::path& path, size_t triangles) {
   std::printf("%s: %zu triangles, %ju bytes\n", path.c_str(), triangles, static_cast<uintmax_t>(fs::file_size(path)));
 }
 
+// A drone needs room: refuse a path that passes within 3 m of anything.
+Clearance checked_clearance(const char* name, const fs::path& scene, const std::vector<StampedPose>& flight) {
+  const Clearance clearance = min_clearance(scene, flight, 10.0);
+  if (clearance.distance_m < 3.0) {
+    const Eigen::Vector3d& p = clearance.where;
+    throw std::runtime_error(std::string(name) + ": the path passes " + std::to_string(clearance.distance_m) +
+                             " m from the scene at (" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " +
+                             std::to_string(p.z()) + ")");
+  }
+  return clearance;
+}
+
 void write_plant(const fs::path& dir) {
   const GlbWriter plant = build_plant();
   plant.write(dir / "plant.glb");
   report(dir / "plant.glb", plant.triangle_count());
   const std::vector<StampedPose> flight = plant_inspection_flight();
-  // A drone needs room: refuse a path that passes within 3 m of anything.
-  const Clearance clearance = min_clearance(dir / "plant.glb", flight, 10.0);
-  if (clearance.distance_m < 3.0) {
-    const Eigen::Vector3d& p = clearance.where;
-    throw std::runtime_error("plant_inspection: the path passes " + std::to_string(clearance.distance_m) +
-                             " m from the scene at (" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " +
-                             std::to_string(p.z()) + ")");
-  }
+  const Clearance clearance = checked_clearance("plant_inspection", dir / "plant.glb", flight);
   write_tum(dir / "plant_inspection.tum", flight,
             "lidartwin-scenegen: inspection lap around scenes/plant.glb, world_from_sensor (Ouster sensor frame), "
             "4 m/s, 20 Hz, closed");
@@ -53,13 +58,7 @@ void write_yard(const fs::path& dir) {
   const std::vector<StampedPose> flight = yard_flight();
   // On the pad the drone is near the ground by design: check the clearance once it is airborne.
   const std::vector<StampedPose> airborne(flight.begin() + 100, flight.end() - 100);
-  const Clearance clearance = min_clearance(dir / "yard.glb", airborne, 10.0);
-  if (clearance.distance_m < 3.0) {
-    const Eigen::Vector3d& p = clearance.where;
-    throw std::runtime_error("yard_flight: the path passes " + std::to_string(clearance.distance_m) +
-                             " m from the scene at (" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " +
-                             std::to_string(p.z()) + ")");
-  }
+  const Clearance clearance = checked_clearance("yard_flight", dir / "yard.glb", airborne);
   write_tum(dir / "yard_flight.tum", flight,
             "lidartwin-scenegen: SLAM lap over scenes/yard.glb from rest on the pad, world_from_sensor (Ouster "
             "sensor frame), 4 m/s at 5 m, 20 Hz");
