@@ -42,10 +42,13 @@ class RecordGeometry : public ::testing::Test {
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
+  // The sensor's clock reads kUptimeS at frame 0 (record --uptime-s); trajectories start at 0.
+  static constexpr double kUptimeS = 12.5;
+
   std::filesystem::path record(const std::string& name, const std::string& arguments) {
     const auto out = dir_ / name;
-    EXPECT_EQ(test::run_lidartwin("record --ideal --scene " + kHall.string() + " --frames 2 --seed 7 --out " +
-                                  out.string() + " " + arguments),
+    EXPECT_EQ(test::run_lidartwin("record --ideal --scene " + kHall.string() + " --frames 2 --seed 7 --uptime-s 12.5" +
+                                  " --out " + out.string() + " " + arguments),
               0);
     return out;
   }
@@ -60,7 +63,7 @@ class RecordGeometry : public ::testing::Test {
     for (const auto& [frame_id, scan] : capture.frames) {
       for (int m = 0; m < scan.width; ++m) {
         EXPECT_NE(scan.status[static_cast<size_t>(m)], 0u) << "column " << m << " of frame " << frame_id;
-        const auto pose = pose_at(static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9);
+        const auto pose = pose_at(static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9 - kUptimeS);
         for (int r = 0; r < scan.height; ++r) {
           check_pixel(scene, beams, pose, m, r, scan.at(ChannelField::kRange, m, r), min_range_m, max_range_m, tally);
         }
@@ -122,12 +125,26 @@ TEST_F(RecordGeometry, ImuAtRestReadsGravity) {
   ASSERT_EQ(capture.imu.size(), 21u);  // t = 0, 0.01, ..., 0.20 s: two frames and their end
   for (size_t i = 0; i < capture.imu.size(); ++i) {
     const ImuSample& s = capture.imu[i];
-    EXPECT_EQ(s.sys_ts_ns, i * 10'000'000u);
+    EXPECT_EQ(s.sys_ts_ns, 12'500'000'000u + i * 10'000'000u);
     EXPECT_NEAR(static_cast<double>(s.accel_g[2]), 1.0, 1e-6);
     for (const float v : {s.accel_g[0], s.accel_g[1], s.gyro_deg_s[0], s.gyro_deg_s[1], s.gyro_deg_s[2]}) {
       EXPECT_NEAR(static_cast<double>(v), 0.0, 1e-6);
     }
   }
+}
+
+// TIME_FROM_INTERNAL_OSC counts from power-on: by default a recording's first column is stamped
+// 30 s (the sensor's boot and spin-up), its ground truth on the same clock, never 0 ns.
+TEST_F(RecordGeometry, TimestampsCountFromASimulatedPowerOn) {
+  const auto out = dir_ / "uptime";
+  ASSERT_EQ(test::run_lidartwin("record --ideal --scene " + kHall.string() + " --frames 2 --profile os1-64 " +
+                                "--mode 512x10 " + kHallPose + " --out " + out.string()),
+            0);
+  const auto capture = test::decode_capture(out);
+  ASSERT_FALSE(capture.frames.empty());
+  EXPECT_EQ(capture.frames.begin()->second.timestamp_ns[0], 30'000'000'000u);
+  EXPECT_EQ(capture.imu.front().sys_ts_ns, 30'000'000'000u);
+  EXPECT_DOUBLE_EQ(test::read_poses(out / "poses.tum").front().time_s, 30.0);
 }
 
 // The IMU sits at imu_to_sensor_transform (6.253, -11.775, 7.645) mm from the sensor's origin: spun
@@ -247,8 +264,8 @@ TEST_F(RecordGeometry, MovingSensorUsesEachColumnsPose) {
       const auto& truth =
           columns[static_cast<size_t>(frame_id - capture.frames.begin()->first) * 1024 + static_cast<size_t>(m)];
       EXPECT_NEAR(truth.time_s, static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9, 1e-9);
-      EXPECT_NEAR((truth.translation - pose_at(truth.time_s).translation).norm(), 0.0, 1e-6) << m;
-      EXPECT_NEAR(truth.rotation.angularDistance(pose_at(truth.time_s).rotation), 0.0, 1e-6) << m;
+      EXPECT_NEAR((truth.translation - pose_at(truth.time_s - kUptimeS).translation).norm(), 0.0, 1e-6) << m;
+      EXPECT_NEAR(truth.rotation.angularDistance(pose_at(truth.time_s - kUptimeS).rotation), 0.0, 1e-6) << m;
       ++checked;
     }
   }

@@ -36,6 +36,7 @@ struct RecordFlags {
   int threads = 0;
   int columns_per_packet = 16;
   bool ideal = false;
+  double uptime_s = kDefaultUptimeS;
 };
 
 // --ideal: no noise or dropout. Radiometry (deterministic expected values) keeps signal,
@@ -127,7 +128,7 @@ int run_record(const RecordFlags& flags) {
                                   : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   const ProgressBar bar(flags.frames, metadata.format.fps);
   record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
-          flags.out, flags.ideal ? ImuNoise{} : profile.imu},
+          flags.out, flags.ideal ? ImuNoise{} : profile.imu, flags.uptime_s},
          [&bar](int done) { bar.update(done); });
   return 0;
 }
@@ -158,6 +159,10 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
       ->capture_default_str();
   sub->add_option("--columns-per-packet", flags->columns_per_packet, "columns per lidar packet")
       ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}))
+      ->capture_default_str();
+  sub->add_option("--uptime-s", flags->uptime_s,
+                  "the sensor's time since power-on at frame 0: where its timestamps start (TIME_FROM_INTERNAL_OSC)")
+      ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
   sub->add_flag("--ideal", flags->ideal,
                 "no noise or dropout: ideal ranges on the wire's step, within the profile's range, and an exact IMU");

@@ -73,11 +73,18 @@ ForwardModelSetup model_setup(const Recording& recording) {
   ForwardModelSetup setup;
   setup.render = {metadata.beams, metadata.format, recording.max_range_m, recording.chain, recording.seed, 1.0f};
   setup.pose_origin_s = recording.poses.start_s();
-  setup.origin_ns = static_cast<uint64_t>(std::llround(recording.poses.start_s() * 1e9));
+  setup.origin_ns = static_cast<uint64_t>(std::llround(recording.uptime_s * 1e9));
   setup.init_id = metadata.sensor_info.initialization_id;
   setup.prod_sn = std::stoull(metadata.sensor_info.prod_sn);
   setup.imu_noise = recording.imu_noise;
   return setup;
+}
+
+// The pose at frame k's column 0, stamped with that column's timestamp (the packets' clock, s).
+StampedPose frame_start_pose(const ForwardModel& model, const PoseSource& poses, uint64_t frame) {
+  const SensorClock& clock = model.clock();
+  return {static_cast<double>(clock.column_timestamp_ns(frame, 0)) * 1e-9,
+          poses.at(clock.column_pose_time_s(frame, 0))};
 }
 
 }  // namespace
@@ -98,8 +105,7 @@ void record(const Recording& recording, const std::function<void(int frames_done
     model.render(frame, encoded);
     if (writing.valid()) writing.get();  // frame k - 1 written: its buffer is free again
     writing = std::async(std::launch::async, [&capture, &encoded, frame] { capture.write_frame(frame, encoded); });
-    const double frame_start_s = model.clock().column_pose_time_s(frame, 0);
-    poses.push_back({frame_start_s, recording.poses.at(frame_start_s)});
+    poses.push_back(frame_start_pose(model, recording.poses, frame));
     // Ground truth per column: the very pose each observed column was cast from, at the column's
     // timestamp (the packets' clock, in seconds).
     for (size_t m = 0; m < encoded.columns.observed.size(); ++m) {
@@ -111,8 +117,7 @@ void record(const Recording& recording, const std::function<void(int frames_done
   if (writing.valid()) writing.get();
   // And the pose where the last frame ends, so the file spans every column of the capture (compare
   // reads it as the trajectory of a record directory).
-  const double end_s = model.clock().column_pose_time_s(static_cast<uint64_t>(recording.frames), 0);
-  poses.push_back({end_s, recording.poses.at(end_s)});
+  poses.push_back(frame_start_pose(model, recording.poses, static_cast<uint64_t>(recording.frames)));
   capture.write_imu_until(model.clock().origin_ns +
                           model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
   write_tum(recording.out_dir / "poses.tum", poses);

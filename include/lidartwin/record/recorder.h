@@ -14,6 +14,9 @@
 
 namespace lidartwin {
 
+// A sensor streams about half a minute after power-on (boot and spin-up).
+inline constexpr double kDefaultUptimeS = 30.0;
+
 struct Recording {
   const Scene& scene;
   const PoseSource& poses;
@@ -25,15 +28,20 @@ struct Recording {
   int frames = 1;
   std::filesystem::path out_dir;
   ImuNoise imu_noise = {};  // the profile's IMU errors (zero: exact)
+  // The sensor's time since power-on when frame 0 starts: TIME_FROM_INTERNAL_OSC counts from
+  // power-on (protocol doc 6.3), so a real capture never starts at 0 ns.
+  double uptime_s = kDefaultUptimeS;
 };
 
-// Times: the sensor clock's origin is the pose source's start t0 = poses.start_s(): frame k starts
-// at t0 + k / fps, column m of it is observed m / (W * fps) later (protocol doc 6.1) and cast from
-// the pose at that time. Every timestamp in the capture (column timestamps, IMU sys_ts, pcap record
-// times) is that time in ns, so the capture and poses.tum share one clock. A lidar packet's pcap
-// time is its last column's timestamp (when it would leave the sensor).
-// poses.tum: one row per frame, world_from_sensor at the frame's start t0 + k / fps, which is the
-// time of its column m = 0 (and that column's timestamp, in seconds).
+// Times: frame k starts at pose time t0 + k / fps, t0 = poses.start_s(), and column m of it is
+// observed m / (W * fps) later (protocol doc 6.1) and cast from the pose at that time. The sensor's
+// clock (TIME_FROM_INTERNAL_OSC) reads uptime_s at frame 0's column 0 and runs with the pose time;
+// every timestamp in the capture (column timestamps, IMU sys_ts, pcap record times) is on it, and
+// so are the ground truth files: a lidar packet's pcap time is its last column's timestamp (when
+// it would leave the sensor).
+// poses.tum: one row per frame, world_from_sensor at the frame's column 0, stamped with that
+// column's timestamp in seconds, plus one where the last frame ends; column_poses.tum: the pose
+// each observed column was cast from, at its timestamp.
 // progress(frames_done) is called after each frame.
 void record(const Recording& recording, const std::function<void(int frames_done)>& progress);
 
