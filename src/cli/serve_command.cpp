@@ -98,6 +98,7 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorProfile& pr
   setup.mounting = mounting(flags);
   setup.per_column_poses = flags.per_column_poses;
   setup.imu_noise = profile.imu;
+  setup.stamp_pose_clock = flags.stamp_pose_clock;
   if (live(flags)) {
     setup.streamer.lock_step = flags.lock_step;
     setup.streamer.cast_ahead_ms = flags.cast_ahead_ms;
@@ -223,6 +224,11 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
                 "arrive (implies --live-poses)")
       ->excludes(trajectory)
       ->excludes(pose_clock);
+  sub->add_flag("--stamp-pose-clock", flags->stamp_pose_clock,
+                "with live poses: stamp packets on the poses' clock (a simulator's time) instead of the "
+                "timestamp_mode's, paced on the host's; streaming starts with the first pose")
+      ->excludes(trajectory)
+      ->excludes("--lock-step");
   sub->add_option("--pose-extrapolate-ms", flags->pose_extrapolate_ms,
                   "extrapolate live poses up to this far past the newest")
       ->check(CLI::Range(0.0, 10'000.0))

@@ -49,7 +49,9 @@ Trajectory load_trajectory(const ServeFlags& flags) {
   return Trajectory::constant(Pose{});
 }
 
-bool live(const ServeFlags& flags) { return flags.live_poses || !flags.pose_udp.empty() || flags.lock_step; }
+bool live(const ServeFlags& flags) {
+  return flags.live_poses || !flags.pose_udp.empty() || flags.lock_step || flags.stamp_pose_clock;
+}
 
 LivePoseOptions live_pose_options(const ServeFlags& flags) {
   LivePoseOptions options;

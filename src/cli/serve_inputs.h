@@ -44,7 +44,8 @@ struct ServeFlags {
   double cast_ahead_ms = 2.0;  // with live poses: how long before a packet is due it is cast
   std::string mount;           // vehicle_from_sensor "x y z qx qy qz qw"
   bool per_column_poses = true;
-  bool lock_step = false;  // the simulator owns time: pose times drive the sensor's clock
+  bool lock_step = false;         // the simulator owns time: pose times drive the sensor's clock
+  bool stamp_pose_clock = false;  // stamped on the poses' clock, paced on the host's
 };
 
 // $LIDARTWIN_SOURCE_DIR, else the source tree this binary was built from.

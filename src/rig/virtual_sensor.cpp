@@ -16,6 +16,16 @@ HttpServerOptions with_pose_api(HttpServerOptions http, LivePoses* live, const S
   };
   return http;
 }
+// The live poses' clock offset (host steady - pose clock) once a pose has come.
+StreamerOptions with_pose_clock(StreamerOptions options, LivePoses* live, bool stamp_pose_clock) {
+  if (!live || !stamp_pose_clock) return options;
+  options.pose_clock_offset_ns = [live]() -> std::optional<int64_t> {
+    const LivePoseStats stats = live->stats();
+    if (!stats.newest) return std::nullopt;
+    return stats.clock_offset_ns;
+  };
+  return options;
+}
 }  // namespace
 
 VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
@@ -24,6 +34,7 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
       per_column_poses_(setup.per_column_poses),
       lock_step_(setup.streamer.lock_step),
       imu_noise_(setup.imu_noise),
+      stamp_pose_clock_(setup.stamp_pose_clock && rig.live != nullptr),
       max_range_m_(setup.max_range_m),
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
@@ -34,7 +45,7 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
           [this](const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns) {
             return make_model(config, start_steady_ns, origin_ns);
           },
-          std::move(setup.streamer)) {}
+          with_pose_clock(std::move(setup.streamer), rig.live, setup.stamp_pose_clock)) {}
 
 VirtualSensor::~VirtualSensor() {
   stop();
@@ -62,6 +73,8 @@ void VirtualSensor::start() {
   subscription_ = sensor_.subscribe([this](const Sensor::StreamConfigPtr& config) { streamer_.apply(config); });
   if (lock_step_ && rig_.live) {
     pose_subscription_ = rig_.live->subscribe([this](const PoseMessage& pose) { streamer_.advance_to(pose.time_ns); });
+  } else if (stamp_pose_clock_) {
+    pose_subscription_ = rig_.live->subscribe([this](const PoseMessage&) { streamer_.pose_arrived(); });
   }
   stats_pump_ = std::jthread([this](std::stop_token stop) { pump_stats(stop); });
 }

@@ -84,15 +84,40 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
     spdlog::info("streamer: lock-step: config generation {} starts at the next simulation time", config->generation);
     return;
   }
+  start_paced_session();
+}
+
+// On the host's clock, stamped per timestamp_mode, or on the live poses' clock once it is known.
+void Streamer::start_paced_session() {
   const int64_t start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
+  int64_t origin_ns = start_steady_ns + timestamp_offset_ns(*config_);
+  if (options_.pose_clock_offset_ns) {
+    const std::optional<int64_t> offset = options_.pose_clock_offset_ns();
+    if (!offset) {
+      spdlog::info("streamer: config generation {} starts with the first pose (stamped on the poses' clock)",
+                   config_->generation);
+      return;
+    }
+    origin_ns = start_steady_ns - *offset;
+    if (origin_ns < 0) {
+      spdlog::error("streamer: the poses' clock reads {} ns, before zero: packets cannot carry it", origin_ns);
+      return;
+    }
+  }
   try {
-    start_session(std::move(config), start_steady_ns,
-                  static_cast<uint64_t>(start_steady_ns + timestamp_offset_ns(*config_)));
+    start_session(config_, start_steady_ns, static_cast<uint64_t>(origin_ns));
   } catch (const std::exception& e) {
     // The sensor validated the config; a format the packet encoder refuses is reported, and the
     // daemon stays up without streaming until the next reinit.
     spdlog::error("streamer: cannot stream config generation {}: {}", config_->generation, e.what());
   }
+}
+
+void Streamer::pose_arrived() {
+  asio::post(io_, [this] {
+    if (stopped_ || session_ || !config_ || !config_->streaming || options_.lock_step) return;
+    start_paced_session();
+  });
 }
 
 void Streamer::advance_to(int64_t time_ns) {

@@ -300,6 +300,52 @@ TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
   EXPECT_NE(daemon.log().find("live poses: stream stalled"), std::string::npos) << daemon.log();
 }
 
+// --stamp-pose-clock: paced on this host's clock but stamped on the poses' own clock (a simulator's,
+// here 1000 s ahead of CLOCK_MONOTONIC): nothing goes out before the first pose tells the clock.
+TEST(LivePosesClock, PacketsCarryThePosesClockWhenAsked) {
+  constexpr int64_t kAhead = 1'000'000'000'000;
+  Daemon daemon("127.0.0.1", 0,
+                {"--profile", "os1-32", "--scene", empty_room_scene().string(), "--threads", "1", "--pose-udp",
+                 "127.0.0.1:0", "--stamp-pose-clock", "--cast-ahead-ms", "20"});
+  UdpSocket lidar;
+  std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "512x10";
+  const Metadata metadata = parse(sdk016_init_client(*client, request));
+  EXPECT_FALSE(lidar.receive(std::chrono::milliseconds(400))) << "a packet before the poses' clock was known";
+  std::atomic<bool> done{false};
+  std::thread rig([&] {
+    PoseSender sender("127.0.0.1", pose_udp_port(daemon.log()));
+    const Turn turn{monotonic_ns()};
+    for (uint32_t sequence = 1; !done; ++sequence) {
+      RigPose pose = turn.at(monotonic_ns(), sequence);
+      pose.time_ns += kAhead;
+      sender.send(pose_datagram(pose));
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  ScanBatcher batcher(metadata.format);
+  size_t scans = 0;
+  while (scans < 3) {
+    const auto d = lidar.receive(std::chrono::seconds(5));
+    ASSERT_TRUE(d) << "no packet after the poses came";
+    const auto scan = batcher.add(d->bytes);
+    if (!scan) continue;
+    ++scans;
+    // Released when the next frame's first packet came: its last column was stamped just before.
+    uint64_t last = 0;
+    for (size_t m = 0; m < scan->scan.status.size(); ++m) {
+      if (scan->scan.status[m] & 1u) last = std::max(last, scan->scan.timestamp_ns[m]);
+    }
+    EXPECT_NEAR(static_cast<double>(static_cast<int64_t>(last) - (d->received_ns + kAhead)) * 1e-9, 0.0, 0.03);
+  }
+  done = true;
+  rig.join();
+  client.reset();
+  EXPECT_EQ(daemon.stop(), 0);
+}
+
 // Lock-step: the simulator's clock drives the sensor. Poses stamped in simulation time arrive at
 // `speed` times real time; every packet stamped up to the newest simulation time must come, in
 // order, stamped exactly on the simulation's clock.

@@ -77,6 +77,7 @@ INSTANTIATE_TEST_SUITE_P(Flags, ServeLiveFlags,
                                                    "--cast-ahead-ms 10: must be less"},
                                            BadFlag{"--live-poses --pose '0 0 1 0 0 0 1'", "leave out --pose"},
                                            BadFlag{"--lock-step --pose-clock monotonic", "--pose-clock"},
+                                           BadFlag{"--lock-step --stamp-pose-clock", "--stamp-pose-clock"},
                                            BadFlag{"--live-poses --mount '1 2 3'", "--mount"}));
 
 TEST(ServeIdentity, SerialNumberFlagIsTheSensorsProdSn) {

@@ -47,6 +47,8 @@ struct VirtualSensorSetup {
   Pose mounting;                 // vehicle_from_sensor: where the rig's motion carries this sensor
   bool per_column_poses = true;  // false: every column of a frame cast from the frame's first pose
   ImuNoise imu_noise;            // the profile's IMU errors
+  // With live poses: packets stamped on the poses' clock (a simulator's time), paced on the host's.
+  bool stamp_pose_clock = false;
 };
 
 class VirtualSensor {
@@ -82,6 +84,7 @@ class VirtualSensor {
   bool per_column_poses_;
   bool lock_step_;
   ImuNoise imu_noise_;
+  bool stamp_pose_clock_;
   double max_range_m_;
   EffectChain chain_;
   uint64_t seed_;

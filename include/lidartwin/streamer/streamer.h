@@ -44,6 +44,10 @@ struct StreamerOptions {
   // advance_to(t) sends every packet stamped up to t. A config's frame 0 starts at the first t
   // after it became active, and every timestamp (whatever timestamp_mode says) is on that clock.
   bool lock_step = false;
+  // Set: paced on the host's clock but stamped on the live poses' clock (a simulator's time):
+  // timestamp = host steady clock - this offset. A config waits for the first pose (nullopt until
+  // then); pose_arrived() says when to look again.
+  std::function<std::optional<int64_t>()> pose_clock_offset_ns;
 };
 
 // The forward model of a config (its beams, format, signal_multiplier, init_id, prod_sn) whose
@@ -77,6 +81,8 @@ class Streamer {
   void apply(std::shared_ptr<const StreamConfig> config);
   // Any thread. Lock-step only: the simulation's time is now time_ns.
   void advance_to(int64_t time_ns);
+  // Any thread. With pose_clock_offset_ns: a pose arrived, a waiting config may start.
+  void pose_arrived();
   // Any thread: the stats as of the last once-a-second update. The send clock never waits for a
   // reader (it skips an update rather than block), so a reader may be up to a second behind.
   StreamStats stats() const;
@@ -87,6 +93,7 @@ class Streamer {
  private:
   void switch_to(std::shared_ptr<const StreamConfig> config);
   void start_session(std::shared_ptr<const StreamConfig> config, int64_t start_steady_ns, uint64_t origin_ns);
+  void start_paced_session();
   void stop_session();
   void arm_stats_timer();
   void report_stats();
