@@ -68,6 +68,8 @@ std::optional<PoseTimeout> parse_pose_timeout(std::string_view name) {
   return parse_name(name, std::array{PoseTimeout::kHold, PoseTimeout::kInvalid, PoseTimeout::kStandby});
 }
 
+int64_t host_steady_ns() { return clock_ns(CLOCK_MONOTONIC); }
+
 uint64_t LivePoseStats::rejected_total() const {
   uint64_t total = 0;
   for (uint64_t n : rejected) total += n;
@@ -82,8 +84,8 @@ int64_t LivePoses::offset_ns_locked(int64_t arrival_steady_ns, int64_t message_n
   switch (options_.clock) {
     case PoseClock::kMonotonic:
     case PoseClock::kSimulation: return 0;
-    case PoseClock::kRealtime: return clock_ns(CLOCK_MONOTONIC) - clock_ns(CLOCK_REALTIME);
-    case PoseClock::kTai: return clock_ns(CLOCK_MONOTONIC) - clock_ns(CLOCK_REALTIME) - kTaiMinusUtcNs;
+    case PoseClock::kRealtime: return host_steady_ns() - clock_ns(CLOCK_REALTIME);
+    case PoseClock::kTai: return host_steady_ns() - clock_ns(CLOCK_REALTIME) - kTaiMinusUtcNs;
     case PoseClock::kSender: {
       // A message cannot arrive before it was sent: the smallest (arrival - time) seen is the
       // clock offset plus the fastest transit, the usual one-way estimate (no drift correction).

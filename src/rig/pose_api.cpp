@@ -1,8 +1,6 @@
 // Live poses over HTTP (include/lidartwin/rig/pose_api.h).
 #include "lidartwin/rig/pose_api.h"
 
-#include <chrono>
-
 #include "lidartwin/json/json_reader.h"
 
 namespace lidartwin {
@@ -10,11 +8,6 @@ namespace {
 
 using nlohmann::json;
 namespace jr = json_reader;
-
-int64_t steady_now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 // Any JSON number: finiteness is the message's own check (and counted as such), not a type error.
 std::vector<double> read_vector(const jr::ObjectReader& object, std::string_view key, size_t count) {
@@ -118,14 +111,14 @@ ApiResponse live_pose_endpoint(LivePoses& poses, const StreamStats& stream, cons
   while (resource.ends_with('/')) resource.remove_suffix(1);
   if (resource != "pose") throw HttpError(404, "unknown endpoint " + path + ": lidartwin answers /lidartwin/v1/pose");
   if (request.method == "GET" || request.method == "HEAD") {
-    return {200, live_pose_status(poses, stream, steady_now_ns()).dump(), {}};
+    return {200, live_pose_status(poses, stream, host_steady_ns()).dump(), {}};
   }
   if (request.method != "POST") {
     return {405,
             json{{"error", "method " + request.method + " is not allowed on " + path + "; allowed: GET, POST"}}.dump(),
             {{"Allow", "GET, POST"}}};
   }
-  const int64_t arrival = steady_now_ns();
+  const int64_t arrival = host_steady_ns();
   try {
     const PoseMessage message = pose_message_from_json(request.body, "POST " + path);
     poses.receive(message, arrival);

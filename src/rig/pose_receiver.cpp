@@ -15,11 +15,6 @@ constexpr int64_t kWaitingNoticeNs = 5'000'000'000;  // "no pose yet" after this
 constexpr uint64_t kRejectionsLoggedOneByOne = 5;
 constexpr int64_t kRejectionSummaryNs = 5'000'000'000;
 
-int64_t steady_now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 }  // namespace
 
 PoseReceiver::PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional<asio::ip::udp::endpoint> listen)
@@ -38,7 +33,7 @@ PoseReceiver::PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional
 PoseReceiver::~PoseReceiver() = default;
 
 void PoseReceiver::start() {
-  started_ns_ = steady_now_ns();
+  started_ns_ = host_steady_ns();
   if (socket_) {
     spdlog::info("live poses: listening on udp {}:{} (clock {}, extrapolating up to {:.0f} ms, then {})",
                  socket_->local_endpoint().address().to_string(), port(), to_string(poses_.options().clock),
@@ -68,7 +63,7 @@ void PoseReceiver::receive_next() {
 }
 
 void PoseReceiver::on_datagram(size_t size) {
-  const int64_t arrival = steady_now_ns();
+  const int64_t arrival = host_steady_ns();
   try {
     poses_.receive(decode_pose_message({buffer_.data(), size}), arrival);
   } catch (const PoseRejected& e) {
@@ -85,7 +80,7 @@ void PoseReceiver::log_rejection(const std::string& message) {
     reported_rejections_ = logged_rejections_;
     return;
   }
-  const int64_t now = steady_now_ns();
+  const int64_t now = host_steady_ns();
   if (now - last_summary_ns_ < kRejectionSummaryNs) return;
   spdlog::warn("live poses: refused {} more messages (latest: {}); GET /lidartwin/v1/pose counts them by reason",
                logged_rejections_ - reported_rejections_, message);
@@ -104,7 +99,7 @@ void PoseReceiver::arm_watchdog() {
 
 void PoseReceiver::check_stream() {
   const LivePoseStats stats = poses_.stats();
-  const int64_t now = steady_now_ns();
+  const int64_t now = host_steady_ns();
   if (!stats.newest) {
     if (!waiting_logged_ && now - started_ns_ > kWaitingNoticeNs) {
       spdlog::warn("live poses: none received yet; until one arrives no column has a pose ({})",

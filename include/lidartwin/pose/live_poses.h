@@ -39,6 +39,10 @@ std::optional<PoseTimeout> parse_pose_timeout(std::string_view name);  // "hold"
 const char* to_string(PoseClock clock);
 const char* to_string(PoseTimeout timeout);
 
+// The host's steady clock (CLOCK_MONOTONIC, std::chrono::steady_clock), in ns: what arrival times
+// and the rig's epoch are read on.
+int64_t host_steady_ns();
+
 struct LivePoseOptions {
   PoseClock clock = PoseClock::kSender;
   double max_extrapolation_s = 0.1;  // past the newest pose, with its velocity (given or differenced)
