@@ -148,11 +148,22 @@ TEST(PcapWriter, RoundTripsDatagramsOfEverySizeClass) {
   {
     PcapWriter writer(file.path());
     for (const UdpDatagram& d : written) writer.write(d);
-    writer.flush();
   }
   PcapStats stats;
   EXPECT_EQ(read_pcap(file.path(), stats), written);
   EXPECT_EQ(stats.incomplete_datagrams, 0u);
+}
+
+TEST(PcapWriter, AFullDiskIsAnErrorNamingTheFile) {
+  try {
+    PcapWriter writer("/dev/full");
+    std::mt19937 rng(1);
+    writer.write(random_datagram(rng, 24896));
+    FAIL() << "writing to /dev/full succeeded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/dev/full: cannot write capture: No space left on device"), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(PcapWriter, StoresMicrosecondTimestamps) {

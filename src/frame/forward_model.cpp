@@ -10,6 +10,8 @@
 
 namespace lidartwin {
 
+using PacketReady = ForwardModel::PacketReady;
+
 struct ForwardModel::Impl {
   Impl(const Scene& scene, const PoseSource& pose_source, ForwardModelSetup model_setup, WorkerPool& pool)
       : poses(pose_source),
@@ -76,7 +78,7 @@ struct ForwardModel::Impl {
   }
 
   // Packets [begin, end) whose columns are contiguous.
-  size_t render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
+  size_t render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out, const PacketReady& ready) const {
     const int cpp = columns_per_packet();
     const int first = firsts[begin];
     const int last = firsts[end - 1] + cpp;
@@ -94,6 +96,7 @@ struct ForwardModel::Impl {
     const auto encode = [&](int block_begin, int) {
       const int index = index_of_first[static_cast<size_t>(block_begin / cpp)];
       packets.encode(header, out.scan, block_begin, slot(out, static_cast<size_t>(index)));
+      if (ready) ready(static_cast<size_t>(index));
     };
     renderer.render(out.columns, first, last, out.scan, encode, prepare);
     return unposed.load();
@@ -140,7 +143,16 @@ EncodedFrame ForwardModel::make_frame_buffer() const {
   return frame;
 }
 
+size_t ForwardModel::render(uint64_t frame, EncodedFrame& out, const PacketReady& ready) const {
+  return render_packets(frame, 0, packet_columns().size(), out, ready);
+}
+
 size_t ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const {
+  return render_packets(frame, begin, end, out, nullptr);
+}
+
+size_t ForwardModel::render_packets(uint64_t frame, size_t begin, size_t end, EncodedFrame& out,
+                                    const PacketReady& ready) const {
   const auto& firsts = impl_->firsts;
   assert(begin <= end && end <= firsts.size());
   const int cpp = impl_->columns_per_packet();
@@ -149,7 +161,7 @@ size_t ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFra
   while (begin < end) {
     size_t run_end = begin + 1;
     while (run_end < end && firsts[run_end] == firsts[run_end - 1] + cpp) ++run_end;
-    unposed += impl_->render_run(frame, begin, run_end, out);
+    unposed += impl_->render_run(frame, begin, run_end, out, ready);
     begin = run_end;
   }
   return unposed;

@@ -87,33 +87,31 @@ uint16_t internet_checksum(std::span<const uint8_t> bytes, uint32_t initial_sum)
   return static_cast<uint16_t>(~sum & 0xFFFF);
 }
 
-void encode_frames(const UdpDatagramView& datagram, uint16_t ip_id, FrameScratch& scratch,
-                   const std::function<void(std::span<const uint8_t>)>& emit, size_t mtu) {
+void split_frames(const UdpDatagramView& datagram, uint16_t ip_id, std::vector<FrameParts>& out, size_t mtu) {
   assert(datagram.payload.size() <= kMaxUdpPayload);
   const std::array<uint8_t, kUdpHeader> header = udp_header(datagram);
   const size_t udp_size = kUdpHeader + datagram.payload.size();
-  // The IP payload is the UDP header then the datagram's payload, copied straight from the caller's
-  // buffer into each fragment. Every fragment but the last carries a multiple of 8 bytes (RFC 791):
-  // 1480 at a 1500 MTU.
+  // The IP payload is the UDP header then the datagram's payload. Every fragment but the last
+  // carries a multiple of 8 bytes (RFC 791): 1480 at a 1500 MTU.
   const size_t per_fragment = (mtu - kIpv4Header) / 8 * 8;
+  out.clear();
   for (size_t offset = 0; offset < udp_size; offset += per_fragment) {
     const size_t length = std::min(per_fragment, udp_size - offset);
     const bool more = offset + length < udp_size;
-    scratch.frame.resize(kEthernetHeader + kIpv4Header + length);
-    std::span<uint8_t> frame(scratch.frame);
-    write_ethernet(frame, datagram);
-    write_ipv4(frame.subspan(kEthernetHeader), datagram, ip_id, offset, length, more);
-    uint8_t* out = frame.data() + kEthernetHeader + kIpv4Header;
+    FrameParts& frame = out.emplace_back();
+    const std::span<uint8_t> bytes(frame.header);
+    write_ethernet(bytes, datagram);
+    write_ipv4(bytes.subspan(kEthernetHeader), datagram, ip_id, offset, length, more);
+    frame.header_size = kEthernetHeader + kIpv4Header;
     size_t from = offset;  // offset into the UDP header + payload
     if (from < kUdpHeader) {
       const size_t n = std::min(kUdpHeader - from, length);
-      std::memcpy(out, header.data() + from, n);
-      out += n;
+      std::memcpy(frame.header.data() + frame.header_size, header.data() + from, n);
+      frame.header_size += n;
       from += n;
     }
-    const size_t rest = offset + length - from;
-    if (rest > 0) std::memcpy(out, datagram.payload.data() + (from - kUdpHeader), rest);
-    emit(frame);
+    frame.payload_offset = from - kUdpHeader;
+    frame.payload_size = offset + length - from;
   }
 }
 

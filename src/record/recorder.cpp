@@ -1,11 +1,13 @@
-// The frame loop of `lidartwin record`: the forward model renders and encodes frame k + 1 while
-// frame k's packets, and the IMU packets due among them, are written in time order.
+// The frame loop of `lidartwin record`: the forward model renders and encodes a frame while its
+// packets, the IMU packets due among them and its columns' poses are written in time order.
 #include "lidartwin/record/recorder.h"
 
 #include <array>
+#include <atomic>
+#include <cassert>
+#include <mutex>
 #include <cmath>
 #include <fstream>
-#include <future>
 #include <vector>
 
 #include "lidartwin/error.h"
@@ -20,16 +22,40 @@ namespace {
 constexpr uint16_t kLidarPort = 7502;  // the FW defaults (protocol doc 2.6)
 constexpr uint16_t kImuPort = 7503;
 
+// Writes a frame's packets in send order while the frame renders, on the render threads: each
+// worker that finishes a packet writes whatever is ready in order, if no other worker is writing.
+// A writer thread of its own would compete with the two render threads for the cores and leave one
+// idle at every frame's end (pipeline_bench (d): 16-23 -> xx M pixels/s from the drone's pose).
 class CaptureWriter {
  public:
-  CaptureWriter(const ForwardModel& model, const std::filesystem::path& path)
-      : model_(model), pcap_(path), imu_(model.format().udp_profile_imu == UdpProfileImu::kLegacy) {}
+  CaptureWriter(const ForwardModel& model, const std::filesystem::path& dir)
+      : model_(model),
+        pcap_(dir / "capture.pcap"),
+        column_poses_(dir / "column_poses.tum"),
+        imu_(model.format().udp_profile_imu == UdpProfileImu::kLegacy),
+        ready_(model.packet_columns().size()) {}
 
-  void write_frame(uint64_t frame, const EncodedFrame& encoded) {
-    for (size_t i = 0; i < model_.packet_columns().size(); ++i) {
-      write_lidar(model_.packet(encoded, i), model_.packet_timestamp_ns(frame, i));
-    }
+  // Before frame k renders into `encoded`.
+  void begin_frame(uint64_t frame, const EncodedFrame& encoded) {
+    frame_ = frame;
+    encoded_ = &encoded;
+    next_.store(0, std::memory_order_relaxed);
+    for (auto& flag : ready_) flag.store(0, std::memory_order_relaxed);
   }
+
+  // On the worker that encoded packet `index` of the frame.
+  void packet_ready(size_t index) {
+    ready_[index].store(1, std::memory_order_release);
+    write_ready();
+  }
+
+  // After the frame rendered: the packets no worker got to.
+  void end_frame() {
+    write_ready();
+    assert(next_.load() == ready_.size());
+  }
+
+  void close() { column_poses_.close(); }
 
   // Writes the IMU packets due up to (and including) time_ns.
   void write_imu_until(uint64_t time_ns) {
@@ -42,6 +68,34 @@ class CaptureWriter {
   }
 
  private:
+  bool next_ready() const {
+    const size_t next = next_.load(std::memory_order_relaxed);
+    return next < ready_.size() && ready_[next].load(std::memory_order_acquire) != 0;
+  }
+
+  // The writer re-checks after letting go, so a packet marked while it wrote does not wait for the
+  // frame's end.
+  void write_ready() {
+    while (next_ready()) {
+      const std::unique_lock lock(mutex_, std::try_to_lock);
+      if (!lock.owns_lock()) return;  // the worker holding it writes this packet
+      for (; next_ready(); next_.fetch_add(1, std::memory_order_relaxed)) write_packet(next_.load());
+    }
+  }
+
+  // Packet `index`, then its columns' ground truth: the very pose each observed column was cast
+  // from, at the column's timestamp (the packets' clock, in seconds).
+  void write_packet(size_t index) {
+    write_lidar(model_.packet(*encoded_, index), model_.packet_timestamp_ns(frame_, index));
+    const int first = model_.packet_columns()[index];
+    for (int m = first; m < first + model_.format().columns_per_packet; ++m) {
+      const auto column = static_cast<size_t>(m);
+      if (!encoded_->columns.observed[column]) continue;
+      column_poses_.write(static_cast<double>(encoded_->scan.timestamp_ns[column]) * 1e-9,
+                          encoded_->columns.poses[column]);
+    }
+  }
+
   // IMU packets due up to (and including) time_ns go first, then the lidar packet.
   void write_lidar(std::span<const uint8_t> packet, uint64_t time_ns) {
     write_imu_until(time_ns);
@@ -58,8 +112,15 @@ class CaptureWriter {
 
   const ForwardModel& model_;
   PcapWriter pcap_;
+  TumWriter column_poses_;
   bool imu_;
   uint64_t imu_sample_ = 0;
+  // The frame being written: its packets' ready flags and the next one to write (in send order).
+  uint64_t frame_ = 0;
+  const EncodedFrame* encoded_ = nullptr;
+  std::vector<std::atomic<uint8_t>> ready_;
+  std::atomic<size_t> next_{0};
+  std::mutex mutex_;  // held by the worker writing
 };
 
 void write_metadata(const Metadata& metadata, const std::filesystem::path& path) {
@@ -89,39 +150,30 @@ StampedPose frame_start_pose(const ForwardModel& model, const PoseSource& poses,
 
 }  // namespace
 
-// Frame k + 1 renders while frame k is written to the capture (two buffers).
+// Each frame's packets are written as they come out of the forward model (CaptureWriter).
 void record(const Recording& recording, const std::function<void(int frames_done)>& progress) {
   std::filesystem::create_directories(recording.out_dir);
   write_metadata(recording.metadata, recording.out_dir / "metadata.json");
   WorkerPool pool(recording.threads);
   const ForwardModel model(recording.scene, recording.poses, model_setup(recording), pool);
-  CaptureWriter capture(model, recording.out_dir / "capture.pcap");
-  std::array<EncodedFrame, 2> buffers{model.make_frame_buffer(), model.make_frame_buffer()};
-  std::future<void> writing;
-  std::vector<StampedPose> poses, column_poses;
+  CaptureWriter capture(model, recording.out_dir);
+  EncodedFrame encoded = model.make_frame_buffer();
+  std::vector<StampedPose> poses;
   for (int k = 0; k < recording.frames; ++k) {
     const auto frame = static_cast<uint64_t>(k);
-    EncodedFrame& encoded = buffers[frame % 2];
-    model.render(frame, encoded);
-    if (writing.valid()) writing.get();  // frame k - 1 written: its buffer is free again
-    writing = std::async(std::launch::async, [&capture, &encoded, frame] { capture.write_frame(frame, encoded); });
+    capture.begin_frame(frame, encoded);
+    model.render(frame, encoded, [&capture](size_t index) { capture.packet_ready(index); });
+    capture.end_frame();
     poses.push_back(frame_start_pose(model, recording.poses, frame));
-    // Ground truth per column: the very pose each observed column was cast from, at the column's
-    // timestamp (the packets' clock, in seconds).
-    for (size_t m = 0; m < encoded.columns.observed.size(); ++m) {
-      if (!encoded.columns.observed[m]) continue;
-      column_poses.push_back({static_cast<double>(encoded.scan.timestamp_ns[m]) * 1e-9, encoded.columns.poses[m]});
-    }
     progress(k + 1);
   }
-  if (writing.valid()) writing.get();
   // And the pose where the last frame ends, so the file spans every column of the capture (compare
   // reads it as the trajectory of a record directory).
   poses.push_back(frame_start_pose(model, recording.poses, static_cast<uint64_t>(recording.frames)));
   capture.write_imu_until(model.clock().origin_ns +
                           model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
+  capture.close();
   write_tum(recording.out_dir / "poses.tum", poses);
-  write_tum(recording.out_dir / "column_poses.tum", column_poses);
 }
 
 }  // namespace lidartwin

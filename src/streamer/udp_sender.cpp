@@ -56,7 +56,6 @@ void UdpSender::record(Ipv4 destination, uint16_t port, std::span<const uint8_t>
 void UdpSender::close() {
   asio::error_code ignored;
   socket_.close(ignored);
-  if (recorder_) recorder_->flush();
 }
 
 }  // namespace lidartwin::streamer_detail

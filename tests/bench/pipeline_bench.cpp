@@ -12,8 +12,8 @@
 // Each repeat runs (a), (c) and (d) back to back and takes the ratios (c)/(a) and (d)/(a); the
 // ratios printed are medians over the repeats (this host's speed drifts by tens of percent between
 // runs, much less within a pair), the rates the best of each.
-// Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=5] [only=all|pipeline]
-// ("pipeline" runs only (c), for profiling).
+// Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=5] [only=all|pipeline|record]
+// ("pipeline" runs only (c), "record" only (d), for profiling).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -243,7 +243,15 @@ double median(std::vector<double> values) {
   return values.empty() ? 0.0 : values[values.size() / 2];
 }
 
-void run_scenario(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats, bool only_pipeline) {
+void run_scenario(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats,
+                  const std::string& only) {
+  if (only == "record") {
+    std::printf("%s: (d) record end to end, M pixels/s:", scenario.name);
+    for (int r = 0; r < repeats; ++r) std::printf(" %.2f", record_path(s, *scenario.poses, frames, threads).wall_per_s * 1e-6);
+    std::printf("\n");
+    return;
+  }
+  const bool only_pipeline = only == "pipeline";
   WorkerPool pool(threads);
   ForwardModelSetup setup;
   setup.render = {s.metadata.beams, s.format(), s.profile.max_range_m, chain_of(s), 1, 1.0f};
@@ -270,6 +278,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     keep_best(recorded, d);
     pipeline_ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);
     record_ratios.push_back(d.wall_per_s / a.wall_per_s);
+    std::fprintf(stderr, "repeat %d: raw %.2f pipeline %.2f record %.2f\n", r, a.wall_per_s * 1e-6, p.pixels.wall_per_s * 1e-6, d.wall_per_s * 1e-6);
     keep_best(raw1, raw_single(s, rays, threads));
     keep_best(cast, caster_only(s, *scenario.poses, renderer.geometry(), renderer.cast_range_m(), frames, threads));
   }
@@ -302,7 +311,7 @@ int main(int argc, char** argv) {
   const int frames = argc > 1 ? std::atoi(argv[1]) : 20;
   const int threads_arg = argc > 2 ? std::atoi(argv[2]) : 0;
   const int repeats = argc > 3 ? std::atoi(argv[3]) : 5;
-  const bool only_pipeline = argc > 4 && std::string(argv[4]) == "pipeline";
+  const std::string only = argc > 4 ? argv[4] : "all";
   const int threads = threads_arg > 0 ? threads_arg : static_cast<int>(std::thread::hardware_concurrency());
   const Setup s;
   std::printf("OS1-128 2048x10, scenes/plant.glb (%zu triangles), %d frames, %d threads, %d repeats\n",
@@ -312,6 +321,6 @@ int main(int argc, char** argv) {
        std::make_unique<TrajectoryPoses>(Trajectory::load_tum(kSource / "scenes/plant_inspection.tum"))},
       {"ground (pose \"15 9 1.7 0 0 0 1\")", std::make_unique<StaticPose>(parse_pose(kGroundPose))},
   };
-  for (const Scenario& scenario : scenarios) run_scenario(s, scenario, frames, threads, repeats, only_pipeline);
+  for (const Scenario& scenario : scenarios) run_scenario(s, scenario, frames, threads, repeats, only);
   return 0;
 }

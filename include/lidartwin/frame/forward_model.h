@@ -5,6 +5,7 @@
 // what it makes, `record` only writes it, and the analysis calls the same model.
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -67,6 +68,11 @@ class ForwardModel {
   // the number of columns in the window that went out unobserved for want of a pose.
   size_t render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out) const;
   size_t render(uint64_t frame, EncodedFrame& out) const { return render(frame, 0, packet_columns().size(), out); }
+  // The same, calling ready(index) on the worker that encoded packet `index`, as soon as its bytes
+  // and its columns in out are final: a writer can take packets while the rest still render, on
+  // the render threads themselves (`record`), instead of a thread of its own competing for cores.
+  using PacketReady = std::function<void(size_t index)>;
+  size_t render(uint64_t frame, EncodedFrame& out, const PacketReady& ready) const;
   // Whether packet `index` of a rendered frame has any observed column.
   bool packet_observed(const EncodedFrame& frame, size_t index) const;
   const PoseSource& poses() const;
@@ -84,6 +90,7 @@ class ForwardModel {
   void imu_packet(uint64_t sample, std::span<uint8_t, kLegacyImuPacketSize> out) const;
 
  private:
+  size_t render_packets(uint64_t frame, size_t begin, size_t end, EncodedFrame& out, const PacketReady& ready) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

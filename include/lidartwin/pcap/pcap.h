@@ -79,10 +79,10 @@ class PcapWriter {
   ~PcapWriter();
   PcapWriter(const PcapWriter&) = delete;
   PcapWriter& operator=(const PcapWriter&) = delete;
-  // Throws InputError if the payload does not fit one UDP datagram (65507 bytes).
+  // Unbuffered: the datagram is in the file when this returns. Throws InputError if the payload
+  // does not fit one UDP datagram (65507 bytes), or naming the file if the write fails (disk full).
   void write(const UdpDatagramView& datagram);
   void write(const UdpDatagram& datagram) { write(view_of(datagram)); }
-  void flush();
 
  private:
   struct Impl;
