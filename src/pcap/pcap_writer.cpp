@@ -50,7 +50,7 @@ std::string system_error() { return std::strerror(errno); }
 struct PcapWriter::Impl {
   std::string name;
   int fd = -1;
-  uint16_t next_ip_id = 1;  // a sender's IP id counter: distinct per datagram, as reassembly needs
+  uint16_t next_ip_id = 1;                      // a sender's IP id counter: distinct per datagram, as reassembly needs
   std::vector<pcap_detail::FrameParts> frames;  // reused between datagrams
   std::vector<RecordHeader> records;
   std::vector<iovec> pieces;

@@ -5,9 +5,9 @@
 #include <array>
 #include <atomic>
 #include <cassert>
-#include <mutex>
 #include <cmath>
 #include <fstream>
+#include <mutex>
 #include <vector>
 
 #include "lidartwin/error.h"
@@ -24,8 +24,8 @@ constexpr uint16_t kImuPort = 7503;
 
 // Writes a frame's packets in send order while the frame renders, on the render threads: each
 // worker that finishes a packet writes whatever is ready in order, if no other worker is writing.
-// A writer thread of its own would compete with the two render threads for the cores and leave one
-// idle at every frame's end (pipeline_bench (d): 16-23 -> xx M pixels/s from the drone's pose).
+// A writer thread of its own competed with the render threads for the cores and left one idle at
+// every frame's end (pipeline_bench (d) from the drone's pose: 15-23 M pixels/s, now 24-25).
 class CaptureWriter {
  public:
   CaptureWriter(const ForwardModel& model, const std::filesystem::path& dir)

@@ -247,7 +247,8 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
                   const std::string& only) {
   if (only == "record") {
     std::printf("%s: (d) record end to end, M pixels/s:", scenario.name);
-    for (int r = 0; r < repeats; ++r) std::printf(" %.2f", record_path(s, *scenario.poses, frames, threads).wall_per_s * 1e-6);
+    for (int r = 0; r < repeats; ++r)
+      std::printf(" %.2f", record_path(s, *scenario.poses, frames, threads).wall_per_s * 1e-6);
     std::printf("\n");
     return;
   }
@@ -278,7 +279,8 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     keep_best(recorded, d);
     pipeline_ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);
     record_ratios.push_back(d.wall_per_s / a.wall_per_s);
-    std::fprintf(stderr, "repeat %d: raw %.2f pipeline %.2f record %.2f\n", r, a.wall_per_s * 1e-6, p.pixels.wall_per_s * 1e-6, d.wall_per_s * 1e-6);
+    std::fprintf(stderr, "  repeat %d: (a) %.2f, (c) %.2f, (d) %.2f M/s\n", r, a.wall_per_s * 1e-6,
+                 p.pixels.wall_per_s * 1e-6, d.wall_per_s * 1e-6);
     keep_best(raw1, raw_single(s, rays, threads));
     keep_best(cast, caster_only(s, *scenario.poses, renderer.geometry(), renderer.cast_range_m(), frames, threads));
   }
