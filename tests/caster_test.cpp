@@ -143,6 +143,44 @@ TEST(ColumnCaster, MarksVerticalEdges) {
   for (size_t i = 0; i < 6; ++i) EXPECT_EQ(column[i].edge, expected[i]) << "row " << i;
 }
 
+TEST(ColumnCaster, EdgePartnersAreTheHitsAcrossTheLargestDepthStep) {
+  const BeamIntrinsics beams = sample_beams();
+  const BeamGeometry geometry(beams, 1024);
+  const auto column_of = [](std::vector<float> ranges) {
+    std::vector<IdealReturn> column(128);
+    for (size_t i = 0; i < column.size(); ++i) {
+      column[i].range_m = i < ranges.size() ? ranges[i] : 30.0f;
+      column[i].reflectivity = 0.4f;
+      column[i].cos_incidence = 0.5f;
+    }
+    return column;
+  };
+  // Rows 0-2 a board at 10 m, row 3 the wall behind at 30 m, row 4 a miss; the column to the
+  // right holds a post at 5 m in row 1.
+  std::vector<IdealReturn> column = column_of({10.0f, 10.1f, 10.2f, 30.0f, 0.0f});
+  std::vector<IdealReturn> right = column_of({10.0f, 5.0f, 10.2f, 30.0f, 0.0f});
+  find_edge_partners(column, {}, right, geometry);
+  EXPECT_FALSE(column[0].has_partner()) << "10.1 m above is no depth step";
+  EXPECT_FLOAT_EQ(column[1].partner_range_m, 5.0f) << "the post beside it";
+  EXPECT_FLOAT_EQ(column[1].partner_spacing_rad, geometry.column_spacing_rad(1));
+  EXPECT_FLOAT_EQ(column[2].partner_range_m, 30.0f) << "the wall below: a 19.8 m step";
+  EXPECT_FLOAT_EQ(column[2].partner_spacing_rad, geometry.row_spacing_rad(2));
+  EXPECT_FLOAT_EQ(column[2].partner_reflectance, 0.2f);
+  EXPECT_FLOAT_EQ(column[3].partner_range_m, 10.2f) << "the board above; the miss below is no partner";
+  EXPECT_FALSE(column[4].has_partner()) << "a miss has no partner";
+  // The spacings are the angles between the beams' axes: about 360/1024 degrees between columns;
+  // between rows, the altitude step and the rows' azimuth offsets (staggered on this OS-1-128).
+  EXPECT_NEAR(static_cast<double>(geometry.column_spacing_rad(64)) * 180 / std::numbers::pi, 360.0 / 1024, 0.01);
+  for (const int row : {0, 63, 64, 126}) {
+    const auto r = static_cast<size_t>(row);
+    const double altitude = std::abs(beams.altitude_deg[r + 1] - beams.altitude_deg[r]);
+    const double azimuth = std::abs(beams.azimuth_deg[r + 1] - beams.azimuth_deg[r]);
+    const double spacing = static_cast<double>(geometry.row_spacing_rad(row)) * 180 / std::numbers::pi;
+    EXPECT_GE(spacing, altitude - 1e-3) << row;
+    EXPECT_LE(spacing, std::hypot(altitude, azimuth) + 1e-3) << row;
+  }
+}
+
 class ColumnCasterScene : public ::testing::Test {
  protected:
   void SetUp() override {

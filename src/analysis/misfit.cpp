@@ -29,6 +29,8 @@ RangeModel model_of(const PixelTable& t, size_t i) {
   m.sigma_m = f64(t.predicted_sigma_m[i]);
   m.p_detect = f64(t.p_detect[i]);
   m.outlier_mix = f64(t.outlier_mix[i]);
+  m.partner_mix = f64(t.partner_mix[i]);
+  m.partner_offset_m = f64(t.partner_offset_m[i]);
   m.window_min_m = f64(t.window_min_m[i]);
   m.window_max_m = f64(t.window_max_m[i]);
   m.step_m = f64(t.step_m[i]);
@@ -156,7 +158,10 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   a.nll_expected += f64(s.nll_expected[i]);
   if (t.range_m[i] <= 0.0f) return;
   ++a.returns;
-  const double pi = f64(t.outlier_mix[i]);
+  // Returns from an edge partner (E6) a depth step away fall outside the pixel's own Gaussian too.
+  const double partner =
+      std::abs(f64(t.partner_offset_m[i])) > kOutlierZ * f64(t.predicted_sigma_m[i]) ? f64(t.partner_mix[i]) : 0.0;
+  const double pi = std::min(f64(t.outlier_mix[i]) + partner, 1.0);
   a.outliers_expected += pi + (1.0 - pi) * 2.0 * normal_cdf(-kOutlierZ);
   const double z = f64(s.z[i]);
   if (s.impossible[i] || std::abs(z) > kOutlierZ) {

@@ -10,15 +10,29 @@ namespace {
 
 constexpr double kSqrtHalf = 0.70710678118654752440;
 
-// The CDF of the returned range (before quantization): the truncated Gaussian mixed with the
+// The probability mass of the window under the Gaussian centred at mean.
+double window_mass(const RangeModel& m, double mean) {
+  return normal_interval((m.window_min_m - mean) / m.sigma_m, (m.window_max_m - mean) / m.sigma_m);
+}
+
+// The probability of [lo, hi] under the Gaussian part, each component truncated to the window: the
+// pixel's own surface and, with weight partner_mix, its edge partner's (E6).
+double gaussian_interval(const RangeModel& m, double lo, double hi, double gaussian_mass) {
+  const auto component = [&](double mean, double mass) {
+    return mass > 0.0 ? normal_interval((lo - mean) / m.sigma_m, (hi - mean) / m.sigma_m) / mass : 0.0;
+  };
+  const double own = component(m.mean_m, gaussian_mass);
+  if (m.partner_mix <= 0.0) return own;
+  const double partner_mean = m.mean_m + m.partner_offset_m;
+  return (1.0 - m.partner_mix) * own + m.partner_mix * component(partner_mean, window_mass(m, partner_mean));
+}
+
+// The CDF of the returned range (before quantization): the truncated Gaussian part mixed with the
 // uniform outlier component, both on the window.
 double range_cdf(const RangeModel& m, double x, double gaussian_mass) {
   const double width = m.window_max_m - m.window_min_m;
   const double clipped = std::clamp(x, m.window_min_m, m.window_max_m);
-  const double gaussian =
-      gaussian_mass > 0.0
-          ? normal_interval((m.window_min_m - m.mean_m) / m.sigma_m, (clipped - m.mean_m) / m.sigma_m) / gaussian_mass
-          : 0.0;
+  const double gaussian = gaussian_interval(m, m.window_min_m, clipped, gaussian_mass);
   const double uniform = width > 0.0 ? (clipped - m.window_min_m) / width : 0.0;
   return std::clamp((1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform, 0.0, 1.0);
 }
@@ -73,6 +87,8 @@ RangeModel range_model(const Prediction& prediction, double ideal_range_m, doubl
   m.sigma_m = std::sqrt(std::max(variance, 0.0));
   m.p_detect = ideal_range_m > 0.0 ? prediction.p_detect : 0.0;
   m.outlier_mix = prediction.outlier_mix;
+  m.partner_mix = prediction.partner_mix;
+  m.partner_offset_m = prediction.partner_offset_m;
   m.window_min_m = prediction.window_min_m;
   m.window_max_m = std::min(prediction.window_max_m, reach_m);
   return m;
@@ -95,10 +111,8 @@ PixelScore score_pixel(const RangeModel& m, double measured_range_m, double pit_
     return score;
   }
   const double half = 0.5 * m.step_m;
-  const double lo = (measured_range_m - half - m.mean_m) / m.sigma_m;
-  const double hi = (measured_range_m + half - m.mean_m) / m.sigma_m;
-  const double mass = normal_interval((m.window_min_m - m.mean_m) / m.sigma_m, (m.window_max_m - m.mean_m) / m.sigma_m);
-  const double gaussian = mass > 0.0 ? normal_interval(lo, hi) / mass : 0.0;
+  const double mass = window_mass(m, m.mean_m);
+  const double gaussian = gaussian_interval(m, measured_range_m - half, measured_range_m + half, mass);
   double p_range = (1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform;
   if (p_range < kImpossible * uniform) {
     score.impossible = true;
@@ -157,6 +171,16 @@ NllMoments expected_nll(const RangeModel& m) {
       second += q * std::log(q) * std::log(q);
     }
     variance = std::max(second - entropy * entropy, 0.0);
+  }
+  // The edge partner's component (E6), the same Gaussian partner_offset_m away, taken as apart
+  // from the pixel's own (its offset is a depth step, many sigmas): choosing between the two adds
+  // their mixing entropy, and the choice's own spread to the variance.
+  const double pe = std::clamp(m.partner_mix, 0.0, 1.0);
+  if (pe > 0.0 && pe < 1.0) {
+    const double own = -std::log1p(-pe), partner = -std::log(pe);
+    const double mixing = (1.0 - pe) * own + pe * partner;
+    variance += (1.0 - pe) * own * own + pe * partner * partner - mixing * mixing;
+    entropy += mixing;
   }
   // The outlier component: a return is Gaussian with weight 1 - pi, costing its bin's NLL less
   // ln(1 - pi), or uniform with weight pi, costing -ln(pi * step / width) (each density negligible

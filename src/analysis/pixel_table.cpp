@@ -3,6 +3,7 @@
 #include "lidartwin/analysis/pixel_table.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <functional>
@@ -89,6 +90,65 @@ void chessboard_distance(const std::vector<int64_t>& index, int width, int heigh
   }
 }
 
+// Frame f's pixels in its measurement-id x beam grid: index[m * height + r] = the pixel's row in
+// the table, -1 where the column was not observed. observed[first] is the frame's first column;
+// returns one past its last.
+size_t index_frame(const std::vector<ObservedColumn>& observed, size_t f, size_t first, int height,
+                   std::vector<int64_t>& index) {
+  std::fill(index.begin(), index.end(), -1);
+  size_t last = first;
+  while (last < observed.size() && observed[last].frame == f) {
+    const ObservedColumn& oc = observed[last++];
+    for (int r = 0; r < height; ++r) {
+      index[static_cast<size_t>(oc.column * height + r)] = static_cast<int64_t>(oc.first_pixel) + r;
+    }
+  }
+  return last;
+}
+
+// Every pixel's edge partner (E6) from its neighbours in the frame's grid, as the forward model
+// finds them from the columns it casts (choose_edge_partner): always, so that the diagnosis can
+// test mixed pixels on a profile without them.
+void find_partners(PixelTable& t, const std::vector<ObservedColumn>& observed, size_t frames, int width, int height,
+                   const BeamGeometry& geometry) {
+  std::vector<int64_t> index(static_cast<size_t>(width * height));
+  const auto ideal = [&](int64_t row) {
+    IdealReturn out;
+    if (row < 0) return out;
+    const auto i = static_cast<size_t>(row);
+    out.range_m = t.ideal_range_m[i];
+    out.reflectivity = t.material_reflectivity[i];
+    out.cos_incidence = static_cast<float>(std::cos(static_cast<double>(t.incidence_deg[i]) * std::numbers::pi / 180.0));
+    return out;
+  };
+  size_t first = 0;
+  for (size_t f = 0; f < frames; ++f) {
+    const size_t last = index_frame(observed, f, first, height, index);
+    for (size_t c = first; c < last; ++c) {
+      const int m = observed[c].column;
+      for (int r = 0; r < height; ++r) {
+        const auto at = [&](int mm, int rr) { return index[static_cast<size_t>(((mm + width) % width) * height + rr)]; };
+        const IdealReturn up = r > 0 ? ideal(at(m, r - 1)) : IdealReturn{};
+        const IdealReturn down = r + 1 < height ? ideal(at(m, r + 1)) : IdealReturn{};
+        const IdealReturn left = ideal(at(m - 1, r)), right = ideal(at(m + 1, r));
+        const std::array<Neighbour, 4> neighbours{{
+            {&up, r > 0 ? geometry.row_spacing_rad(r - 1) : 0.0f},
+            {&down, r + 1 < height ? geometry.row_spacing_rad(r) : 0.0f},
+            {&left, geometry.column_spacing_rad(r)},
+            {&right, geometry.column_spacing_rad(r)},
+        }};
+        const auto i = observed[c].first_pixel + static_cast<size_t>(r);
+        IdealReturn pixel = ideal(static_cast<int64_t>(i));
+        choose_edge_partner(pixel, neighbours);
+        t.partner_range_m[i] = pixel.partner_range_m;
+        t.partner_reflectance[i] = pixel.partner_reflectance;
+        t.partner_spacing_rad[i] = pixel.partner_spacing_rad;
+      }
+    }
+    first = last;
+  }
+}
+
 // Edge and retro distances, frame by frame, once every pixel's ideal return is in the table. On
 // entry t.edge holds the caster's vertical-edge flag and t.retro the pixel's own retro flag.
 void mark_neighbourhoods(PixelTable& t, const std::vector<ObservedColumn>& observed, size_t frames, int width,
@@ -97,14 +157,7 @@ void mark_neighbourhoods(PixelTable& t, const std::vector<ObservedColumn>& obser
   std::vector<uint8_t> edge_seed(t.size(), 0), retro_seed(t.retro);
   size_t first = 0;
   for (size_t f = 0; f < frames; ++f) {
-    std::fill(index.begin(), index.end(), -1);
-    size_t last = first;
-    while (last < observed.size() && observed[last].frame == f) {
-      const ObservedColumn& oc = observed[last++];
-      for (int r = 0; r < height; ++r) {
-        index[static_cast<size_t>(oc.column * height + r)] = static_cast<int64_t>(oc.first_pixel) + r;
-      }
-    }
+    const size_t last = index_frame(observed, f, first, height, index);
     // Depth steps: the caster's vertical edges, and horizontal ones between neighbouring columns.
     for (size_t i = first; i < last; ++i) {
       const ObservedColumn& oc = observed[i];
@@ -133,8 +186,9 @@ void PixelTable::resize(size_t n) {
   for (auto* v : {&beam, &column, &material}) v->resize(n);
   time_s.resize(n);
   for (auto* v : {&range_m, &signal, &reflectivity, &near_ir, &range2_m, &ideal_range_m, &incidence_deg,
-                  &material_reflectivity, &specular, &azimuth_deg, &predicted_bias_m, &predicted_sigma_m, &p_detect,
-                  &outlier_mix, &expected_signal, &expected_near_ir, &window_min_m, &window_max_m, &step_m}) {
+                  &material_reflectivity, &specular, &azimuth_deg, &partner_range_m, &partner_reflectance,
+                  &partner_spacing_rad, &predicted_bias_m, &predicted_sigma_m, &p_detect, &outlier_mix, &partner_mix,
+                  &partner_offset_m, &expected_signal, &expected_near_ir, &window_min_m, &window_max_m, &step_m}) {
     v->resize(n);
   }
   for (auto* v : {&retro, &edge}) v->resize(n);
@@ -164,6 +218,9 @@ void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
   material[i] = static_cast<uint16_t>(ideal.hit() ? ideal.material_id : 0xFFFF);
   retro[i] = ideal.retroreflective;
   edge[i] = ideal.edge;
+  partner_range_m[i] = ideal.partner_range_m;
+  partner_reflectance[i] = ideal.partner_reflectance;
+  partner_spacing_rad[i] = ideal.partner_spacing_rad;
 }
 
 void PixelTable::set_prediction(size_t i, const Prediction& prediction, const RangeModel& model) {
@@ -171,6 +228,8 @@ void PixelTable::set_prediction(size_t i, const Prediction& prediction, const Ra
   predicted_sigma_m[i] = static_cast<float>(model.sigma_m);
   p_detect[i] = static_cast<float>(model.p_detect);
   outlier_mix[i] = static_cast<float>(model.outlier_mix);
+  partner_mix[i] = static_cast<float>(model.partner_mix);
+  partner_offset_m[i] = static_cast<float>(model.partner_offset_m);
   expected_signal[i] = static_cast<float>(prediction.signal_photons);
   expected_near_ir[i] = static_cast<float>(prediction.near_ir_photons);
   window_min_m[i] = static_cast<float>(model.window_min_m);
@@ -188,6 +247,9 @@ IdealReturn PixelTable::ideal_of(size_t i) const {
   ideal.retroreflective = ideal.hit() && retro[i] == 0 ? 1 : 0;
   ideal.edge = ideal.hit() && edge[i] == 0 ? 1 : 0;
   ideal.beam = beam[i];
+  ideal.partner_range_m = partner_range_m[i];
+  ideal.partner_reflectance = partner_reflectance[i];
+  ideal.partner_spacing_rad = partner_spacing_rad[i];
   return ideal;
 }
 
@@ -302,7 +364,9 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
     }
     report_progress();
   });
+  find_partners(table, observed, setup.capture.frames.size(), width, height, geometry);
   mark_neighbourhoods(table, observed, setup.capture.frames.size(), width, height);
+  if (setup.chain.needs_edge_partners()) table = repredicted(table, setup.chain);  // now with partners
   if (no_spread) {
     throw InputError(
         "--profile: its effect chain predicts no range spread (variance 0) for pixels it detects, so no measured "

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <numbers>
 
+#include <Eigen/Geometry>  // cross
+
 namespace lidartwin {
 namespace {
 
@@ -104,6 +106,13 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
       ray.direction = entry.direction.cast<float>();
       ray.range_offset_m = static_cast<float>(kRangeUnit * constants.n);
     }
+  }
+  const auto angle = [](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+    return static_cast<float>(std::atan2(a.cross(b).norm(), a.dot(b)));  // accurate for small angles
+  };
+  for (int row = 0; row < rows_; ++row) {
+    if (row + 1 < rows_) row_spacing_.push_back(angle(ray(row, 0).direction, ray(row + 1, 0).direction));
+    column_spacing_.push_back(columns_ > 1 ? angle(ray(row, 0).direction, ray(row, 1).direction) : 0.0f);
   }
   packets_per_column_ = (rows_ + RayPacket16::kLanes - 1) / RayPacket16::kLanes;
   packets_.reserve(static_cast<size_t>(columns_ * packets_per_column_));

@@ -4,6 +4,7 @@
 #include "lidartwin/caster/column_caster.h"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <stdexcept>
@@ -15,6 +16,9 @@ namespace {
 
 constexpr int kLanes = RayPacket16::kLanes;
 constexpr size_t kMaxRows = 128;  // beams of the largest Ouster sensor
+
+// A depth step between two hits: farther apart than 0.3 m or 5 % of the farther range.
+bool depth_step(float a, float b) { return std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b)); }
 
 // world_from_sensor as plain floats: rotation row-major, then translation.
 struct WorldTransform {
@@ -107,12 +111,42 @@ void mark_vertical_edges(std::span<IdealReturn> column) {
   for (size_t r = 0; r + 1 < n; ++r) {
     const float a = range[r], b = range[r + 1];
     const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
-    const float threshold = std::max(0.3f, 0.05f * std::max(a, b));
-    step[r] = static_cast<uint8_t>((hit_a != hit_b) | (hit_a & hit_b & (std::abs(a - b) > threshold)));
+    step[r] = static_cast<uint8_t>((hit_a != hit_b) | (hit_a & hit_b & depth_step(a, b)));
   }
   column[0].edge = n > 1 ? step[0] : 0;
   for (size_t r = 1; r + 1 < n; ++r) column[r].edge = step[r - 1] | step[r];
   if (n > 1) column[n - 1].edge = step[n - 2];
+}
+
+void choose_edge_partner(IdealReturn& pixel, std::span<const Neighbour> neighbours) {
+  pixel.partner_range_m = pixel.partner_reflectance = pixel.partner_spacing_rad = 0.0f;
+  if (!pixel.hit()) return;
+  float largest = 0.0f;
+  for (const Neighbour& n : neighbours) {
+    if (n.ideal == nullptr || !n.ideal->hit() || !depth_step(pixel.range_m, n.ideal->range_m)) continue;
+    const float step = std::abs(n.ideal->range_m - pixel.range_m);
+    if (step <= largest) continue;
+    largest = step;
+    pixel.partner_range_m = n.ideal->range_m;
+    pixel.partner_reflectance = n.ideal->reflectivity * n.ideal->cos_incidence;
+    pixel.partner_spacing_rad = n.spacing_rad;
+  }
+}
+
+void find_edge_partners(std::span<IdealReturn> column, std::span<const IdealReturn> left,
+                        std::span<const IdealReturn> right, const BeamGeometry& geometry) {
+  const size_t rows = column.size();
+  // The neighbours' own fields are read before any partner is written: only partner_* change.
+  for (size_t r = 0; r < rows; ++r) {
+    const int row = static_cast<int>(r);
+    const std::array<Neighbour, 4> neighbours{{
+        {r > 0 ? &column[r - 1] : nullptr, r > 0 ? geometry.row_spacing_rad(row - 1) : 0.0f},
+        {r + 1 < rows ? &column[r + 1] : nullptr, r + 1 < rows ? geometry.row_spacing_rad(row) : 0.0f},
+        {left.empty() ? nullptr : &left[r], geometry.column_spacing_rad(row)},
+        {right.empty() ? nullptr : &right[r], geometry.column_spacing_rad(row)},
+    }};
+    choose_edge_partner(column[r], neighbours);
+  }
 }
 
 ColumnCaster::ColumnCaster(const Scene& scene, const BeamGeometry& geometry, float max_range_m)

@@ -20,6 +20,7 @@ std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, std::string_v
 std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, std::string_view source);  // E2
 std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, std::string_view source);        // E3
 std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string_view source);         // E4
+std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, std::string_view source);      // E6
 std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source);  // E10
 std::unique_ptr<Effect> make_drift(const nlohmann::json& params, std::string_view source);             // E12
 

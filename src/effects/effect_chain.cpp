@@ -109,6 +109,10 @@ Prediction EffectChain::predict(const IdealReturn& ideal, const ColumnContext& c
   return prediction;
 }
 
+bool EffectChain::needs_edge_partners() const {
+  return std::any_of(effects_.begin(), effects_.end(), [](const auto& e) { return e->needs_edge_partners(); });
+}
+
 EffectChain EffectChain::with_effect(std::shared_ptr<const Effect> effect) const {
   EffectChain chain = *this;
   chain.effects_.push_back(placed(*effect, chain.effects_.size()));

@@ -33,6 +33,7 @@ Registry& registry() {
     r->add("range_walk", make_range_walk, "E3");
     r->add("incidence", make_incidence, "E4");
     r->add("dropout", make_dropout, "E5");
+    r->add("mixed_pixels", make_mixed_pixels, "E6");
     r->add("range_quantization", make_range_quantization, "E9");
     r->add("beam_calibration", make_beam_calibration, "E10");
     r->add("drift", make_drift, "E12");

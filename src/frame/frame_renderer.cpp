@@ -18,6 +18,7 @@ namespace {
 struct Scratch {
   std::vector<std::vector<IdealReturn>> ideal;  // [column of the block][row]
   MeasuredColumn measured;
+  std::vector<IdealReturn> before, after;  // the columns beside the block, for edge partners (E6)
 };
 
 // Rays end 1 m past the profile's maximum range, so range noise can still carry a return across
@@ -37,6 +38,7 @@ struct FrameRenderer::Impl {
         cast_range(cast_limit_m(setup.max_range_m, packets)),
         caster(scene, geometry, cast_range),
         encoder(packets),
+        partners(setup.chain.needs_edge_partners()),
         pool(worker_pool) {
     assert(setup.beams.pixels_per_column() == setup.format.pixels_per_column);
     context.seed = setup.seed;
@@ -47,7 +49,28 @@ struct FrameRenderer::Impl {
     const auto block = static_cast<size_t>(setup.format.columns_per_packet);
     scratch.assign(
         static_cast<size_t>(pool.size()),
-        Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)), MeasuredColumn(rows)});
+        Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)), MeasuredColumn(rows),
+                std::vector<IdealReturn>(rows), std::vector<IdealReturn>(rows)});
+  }
+
+  // E6's edge partners of the block's columns, from their rows above and below and the adjacent
+  // columns. The columns just outside the block are cast again here, from the pose of the block's
+  // column beside them (a column's time apart: the same place); unobserved columns in the block
+  // were not cast and give no partners.
+  void find_partners(const FrameColumns& columns, int begin, int end, Scratch& s) const {
+    const int width = setup.format.columns_per_frame;
+    const auto observed = [&](int m) { return columns.observed[static_cast<size_t>((m + width) % width)] != 0; };
+    if (observed(begin)) caster.cast((begin - 1 + width) % width, columns.poses[static_cast<size_t>(begin)], s.before);
+    if (observed(end - 1)) caster.cast(end % width, columns.poses[static_cast<size_t>(end - 1)], s.after);
+    const auto cast_column = [&](int m) -> std::span<const IdealReturn> {
+      if (m < begin) return s.before;
+      if (m >= end) return s.after;
+      return observed(m) ? std::span<const IdealReturn>(s.ideal[static_cast<size_t>(m - begin)]) : std::span<const IdealReturn>();
+    };
+    for (int m = begin; m < end; ++m) {
+      if (!observed(m)) continue;
+      find_edge_partners(s.ideal[static_cast<size_t>(m - begin)], cast_column(m - 1), cast_column(m + 1), geometry);
+    }
   }
 
   // Columns [begin, end) of one packet. All of them are cast before any goes through the effect
@@ -59,6 +82,7 @@ struct FrameRenderer::Impl {
       if (!columns.observed[column]) continue;
       caster.cast(m, columns.poses[column], s.ideal[static_cast<size_t>(m - begin)]);
     }
+    if (partners) find_partners(columns, begin, end, s);
     for (int m = begin; m < end; ++m) {
       if (!columns.observed[static_cast<size_t>(m)]) {  // 6.4: zero pixels
         encoder.clear(m, scan);
@@ -79,6 +103,7 @@ struct FrameRenderer::Impl {
   float cast_range;
   ColumnCaster caster;
   frame_detail::ChannelEncoder encoder;
+  bool partners;  // the chain reads edge partners (E6)
   ColumnContext context;
   WorkerPool& pool;
   mutable std::vector<Scratch> scratch;  // one per pool worker

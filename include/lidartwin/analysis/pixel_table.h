@@ -43,11 +43,17 @@ struct PixelTable {
   std::vector<uint8_t> retro;
   std::vector<uint8_t> edge;
   std::vector<float> azimuth_deg;  // encoder angle of the column (protocol doc 7.1)
+  // The edge partner across a depth step (IdealReturn::partner_*, E6), found in the frame's grid.
+  std::vector<float> partner_range_m;
+  std::vector<float> partner_reflectance;
+  std::vector<float> partner_spacing_rad;
   // The chain's prediction.
   std::vector<float> predicted_bias_m;
   std::vector<float> predicted_sigma_m;  // of the range before quantization
   std::vector<float> p_detect;
   std::vector<float> outlier_mix;
+  std::vector<float> partner_mix;  // E6: weight and offset of the component at the partner's range
+  std::vector<float> partner_offset_m;
   std::vector<float> expected_signal;
   std::vector<float> expected_near_ir;
   std::vector<float> window_min_m;

@@ -51,6 +51,10 @@ class BeamGeometry {
   }
   // The point the SDK computes for a range in mm (7.1), in the sensor frame, metres.
   Eigen::Vector3d point(int row, int measurement_id, double range_mm) const;
+  // Angles between beam axes (radians), for the footprint of a beam across an edge (E6): row r and
+  // row r + 1 of a column, and row r in adjacent columns.
+  float row_spacing_rad(int row) const { return row_spacing_[static_cast<size_t>(row)]; }
+  float column_spacing_rad(int row) const { return column_spacing_[static_cast<size_t>(row)]; }
   // A column's rays as packets_per_column() 16-lane packets.
   int packets_per_column() const { return packets_per_column_; }
   const RayPacket16* packets(int measurement_id) const {
@@ -64,6 +68,8 @@ class BeamGeometry {
   int packets_per_column_ = 0;
   std::vector<RayPacket16> packets_;  // the same rays, column by column
   BeamIntrinsics beams_;              // for point(), in double precision
+  std::vector<float> row_spacing_;     // [rows - 1]
+  std::vector<float> column_spacing_;  // [rows]
 };
 
 }  // namespace lidartwin

@@ -39,4 +39,20 @@ class ColumnCaster {
 // differs by a depth step (> max(0.3 m, 5 % of the farther range)) or only one of the two hit.
 void mark_vertical_edges(std::span<IdealReturn> column);
 
+// A pixel's neighbour as the footprint model sees it (E6).
+struct Neighbour {
+  const IdealReturn* ideal = nullptr;  // null: none (the frame's end, a column not cast)
+  float spacing_rad = 0.0f;            // angle between the two beams' axes
+};
+
+// Sets pixel's partner_* fields from its neighbours: the one hit across the largest depth step
+// (the step of mark_vertical_edges), or none. A miss on either side is no partner: a footprint
+// straddling the sky loses part of its light but keeps its range.
+void choose_edge_partner(IdealReturn& pixel, std::span<const Neighbour> neighbours);
+
+// choose_edge_partner for every pixel of column m from its rows above and below and the same row
+// in the adjacent columns (`left` = m - 1, `right` = m + 1; empty when not cast).
+void find_edge_partners(std::span<IdealReturn> column, std::span<const IdealReturn> left,
+                        std::span<const IdealReturn> right, const BeamGeometry& geometry);
+
 }  // namespace lidartwin

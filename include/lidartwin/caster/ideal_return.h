@@ -13,7 +13,14 @@ struct IdealReturn {
   uint8_t retroreflective = 0;
   uint8_t edge = 0;   // 1 when a neighbouring pixel's range differs by a depth step
   uint16_t beam = 0;  // row of the column, for per-beam effects' predict (E10)
+  // E6: the neighbouring pixel across a depth step whose surface this beam's footprint may
+  // straddle (choose_edge_partner): its range (0 = none), its rho * cos(theta), and the angle
+  // between the two beams' axes. Set only where an effect needs it (Effect::needs_edge_partners).
+  float partner_range_m = 0.0f;
+  float partner_reflectance = 0.0f;
+  float partner_spacing_rad = 0.0f;
   bool hit() const { return range_m > 0.0f; }
+  bool has_partner() const { return partner_range_m > 0.0f; }
 };
 
 }  // namespace lidartwin

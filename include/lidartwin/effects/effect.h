@@ -45,6 +45,8 @@ class Effect {
 
   // Effects that must come earlier in a chain, e.g. dropout reads the signal radiometry produces.
   virtual std::vector<std::string_view> prerequisites() const { return {}; }
+  // Whether it reads IdealReturn's partner_* fields, which the caster then fills (E6).
+  virtual bool needs_edge_partners() const { return false; }
 
   void set_stream_id(uint32_t id) { stream_id_ = id; }
   uint32_t stream_id() const { return stream_id_; }

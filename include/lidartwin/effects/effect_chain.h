@@ -44,6 +44,8 @@ class EffectChain {
   Prediction predict(const IdealReturn& ideal, const ColumnContext& context) const;
 
   const std::vector<std::shared_ptr<const Effect>>& effects() const { return effects_; }
+  // Whether any effect reads the ideal returns' edge partners (the caster finds them only then).
+  bool needs_edge_partners() const;
   // Copies of `effect` placed at the end or at `index`, with that position's stream id.
   EffectChain with_effect(std::shared_ptr<const Effect> effect) const;  // appended
   EffectChain replacing(size_t index, std::shared_ptr<const Effect> effect) const;

@@ -62,6 +62,12 @@ struct Prediction {
   double window_max_m = std::numeric_limits<double>::infinity();
   double signal_photons = 0.0;   // expected SIGNAL (radiometry), for signal-dependent effects
   double near_ir_photons = 0.0;  // expected NEAR_IR (radiometry)
+  // E6: with probability partner_mix the return comes from the edge partner's surface, its range
+  // offset by partner_offset_m (the Gaussian above, shifted); p_second: the probability of a second
+  // return (dual profiles, E15).
+  double partner_mix = 0.0;
+  double partner_offset_m = 0.0;
+  double p_second = 0.0;
 };
 
 // What the chain knows beyond the pixel: the random-stream key and the wire format's limits.

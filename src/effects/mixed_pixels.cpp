@@ -1,0 +1,169 @@
+// E6 (lidar-physics.md "Mixed pixels / beam divergence at depth discontinuities") and, in the dual
+// profiles, the second return it gives (E15). Near a depth step a beam's footprint (Gaussian, FWHM
+// gamma) straddles two surfaces: its own, at r_p, and its edge partner's, at r_q (the caster's
+// choose_edge_partner: the neighbouring beam that hit across the step). The edge lies somewhere
+// between the two beams' axes, at an angle delta from this beam's, uniform on (0, spacing): the cast
+// knows only that it is between them. The share of the footprint beyond it is
+//   w = Phi(-delta / sigma_b),  sigma_b = gamma / 2.355,
+// and the two echoes carry P_p = (1 - w) a_p / r_p^2 and P_q = w a_q / r_q^2 (a = rho cos(theta);
+// the near-field overlap g(r) is left out). Closer than a pulse length L they merge into one return
+// at the power-weighted mean range (a "flying" point between the surfaces); farther apart the
+// stronger is reported, and a dual profile reports the weaker as its second return when it carries
+// at least second_fraction of the pixel's full power a_p / r_p^2. SIGNAL scales with the reported
+// echo's share of that power. The range noise earlier effects added carries over to both returns.
+// Defaults: gamma 0.13 degrees as E4 (the OS1-64 datasheet [S1]); L and second_fraction have no
+// published value for Ouster [proposed]: fit them (lidartwin fit --add mixed_pixels).
+// A footprint straddling the sky is not modelled (no partner: the beam keeps its range).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <optional>
+
+#include "effects/builtin_effects.h"
+#include "effects/parameters.h"
+
+namespace lidartwin::effects_detail {
+namespace {
+
+constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
+constexpr double kMinReflectance = 1e-6;              // a black surface still returns a little
+constexpr int kQuadrature = 256;                      // midpoints over delta, for predict's moments
+
+double phi(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+
+struct MixedPixelsParameters {
+  double divergence_rad = 0.13 * 3.141592653589793 / 180.0;
+  double pulse_length_m = 1.0;
+  double second_fraction = 0.1;
+};
+
+// One pixel's two echoes, as functions of the edge's angle delta from the beam's axis.
+struct Straddle {
+  double r_p, r_q;          // ranges of the pixel's surface and its partner's
+  double full;              // a_p / r_p^2: the pixel's power with the whole footprint on its surface
+  double partner;           // a_q / r_q^2
+  double sigma_rad;         // the footprint's sigma
+  double spacing_rad;       // delta is uniform on (0, spacing)
+  bool merged;              // |r_q - r_p| < L: one return at the power-weighted mean
+
+  double share_beyond(double delta) const { return phi(-delta / sigma_rad); }
+  double power_p(double w) const { return (1.0 - w) * full; }
+  double power_q(double w) const { return w * partner; }
+  // The delta at which w = share (share in (0, 0.5]; w falls from 0.5 at delta = 0).
+  double delta_at(double share) const {
+    if (share >= 0.5) return 0.0;
+    if (share <= 0.0) return spacing_rad;
+    double lo = 0.0, hi = 40.0;  // in sigmas: Phi(-40) underflows, far below any share asked
+    for (int i = 0; i < 80; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (phi(-mid) > share ? lo : hi) = mid;
+    }
+    return std::min(0.5 * (lo + hi) * sigma_rad, spacing_rad);
+  }
+  // The probability that w lies in [lo, hi] (delta uniform; w decreasing in delta).
+  double probability_w_in(double lo, double hi) const {
+    if (hi < lo) return 0.0;
+    return std::clamp((delta_at(lo) - delta_at(hi)) / spacing_rad, 0.0, 1.0);
+  }
+  // w above which the partner's echo is the stronger: w a_q / r_q^2 > (1 - w) a_p / r_p^2.
+  double partner_wins_above() const { return full / (full + partner); }
+};
+
+class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters> {
+ public:
+  using P = MixedPixelsParameters;
+  static constexpr std::string_view kName = "mixed_pixels";
+  static constexpr std::array<ParameterSpec<P>, 3> kSpecs{{
+      {"divergence_rad", &P::divergence_rad, {0.0, 0.05}},
+      {"pulse_length_m", &P::pulse_length_m, {0.0, 50.0}},
+      {"second_fraction", &P::second_fraction, {0.0, 1.0}},
+  }};
+  using TabledEffect::TabledEffect;
+
+  bool needs_edge_partners() const override { return true; }
+
+  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
+                MeasuredColumn& measured) const override {
+    const ColumnStreams streams = column_streams(context);
+    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
+      const IdealReturn& in = ideal[beam];
+      if (measured.range_m[beam] == 0.0f || !in.has_partner()) continue;
+      const auto s = straddle(in);
+      if (!s) continue;
+      const double noise = static_cast<double>(measured.range_m[beam]) - s->r_p;
+      const double w = s->share_beyond(streams(beam).uniform(0) * s->spacing_rad);
+      const double p = s->power_p(w), q = s->power_q(w);
+      const double signal = measured.signal_photons[beam];
+      if (s->merged) {
+        measured.range_m[beam] = static_cast<float>((p * s->r_p + q * s->r_q) / (p + q) + noise);
+        measured.signal_photons[beam] = static_cast<float>(signal * (p + q) / s->full);
+        continue;
+      }
+      const bool partner_first = q > p;
+      const double strong = partner_first ? q : p, weak = partner_first ? p : q;
+      measured.range_m[beam] = static_cast<float>((partner_first ? s->r_q : s->r_p) + noise);
+      measured.signal_photons[beam] = static_cast<float>(signal * strong / s->full);
+      if (weak / s->full >= params().second_fraction) {
+        measured.range2_m[beam] = static_cast<float>((partner_first ? s->r_p : s->r_q) + noise);
+        measured.signal2_photons[beam] = static_cast<float>(signal * weak / s->full);
+        measured.reflectivity2[beam] = measured.reflectivity[beam];
+      }
+    }
+  }
+
+  void predict(const IdealReturn& in, const ColumnContext&, Prediction& prediction) const override {
+    if (!in.hit() || !in.has_partner()) return;
+    const auto s = straddle(in);
+    if (!s) return;
+    const double step = s->r_q - s->r_p;
+    if (s->merged) {  // moments of the merged range and of the signal's share, by quadrature
+      double f1 = 0.0, f2 = 0.0, gain = 0.0;
+      for (int k = 0; k < kQuadrature; ++k) {
+        const double w = s->share_beyond((k + 0.5) / kQuadrature * s->spacing_rad);
+        const double p = s->power_p(w), q = s->power_q(w);
+        const double f = q / (p + q);
+        f1 += f / kQuadrature, f2 += f * f / kQuadrature, gain += (p + q) / s->full / kQuadrature;
+      }
+      prediction.bias_m += step * f1;
+      prediction.variance_m2 += step * step * std::max(f2 - f1 * f1, 0.0);
+      prediction.signal_photons *= gain;
+      return;
+    }
+    // Split echoes: intervals of w, hence of delta, decide which is reported and whether the
+    // weaker comes second.
+    const double t = s->partner_wins_above();
+    const double fraction = params().second_fraction;
+    prediction.partner_mix = s->probability_w_in(std::nextafter(t, 1.0), 0.5);
+    prediction.partner_offset_m = step;
+    // Partner first: the pixel's echo second when (1 - w) >= fraction; pixel first: the partner's
+    // second when w partner / full >= fraction.
+    const double partner_second_from = fraction * s->full / s->partner;
+    prediction.p_second = s->probability_w_in(std::nextafter(t, 1.0), std::min(0.5, 1.0 - fraction)) +
+                          s->probability_w_in(std::max(partner_second_from, 0.0), std::min(t, 0.5));
+    double gain = 0.0;
+    for (int k = 0; k < kQuadrature; ++k) {
+      const double w = s->share_beyond((k + 0.5) / kQuadrature * s->spacing_rad);
+      gain += std::max(s->power_p(w), s->power_q(w)) / s->full / kQuadrature;
+    }
+    prediction.signal_photons *= gain;
+  }
+
+ private:
+  std::optional<Straddle> straddle(const IdealReturn& in) const {
+    const double sigma = params().divergence_rad / kFwhmPerSigma;
+    if (sigma <= 0.0 || in.partner_spacing_rad <= 0.0f) return std::nullopt;
+    const double r_p = in.range_m, r_q = in.partner_range_m;
+    const double a_p = std::max(static_cast<double>(in.reflectivity * in.cos_incidence), kMinReflectance);
+    const double a_q = std::max(static_cast<double>(in.partner_reflectance), kMinReflectance);
+    return Straddle{r_p,   r_q,   a_p / (r_p * r_p), a_q / (r_q * r_q), sigma, in.partner_spacing_rad,
+                    std::abs(r_q - r_p) < params().pulse_length_m};
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, std::string_view source) {
+  return MixedPixels::create(params, source);
+}
+
+}  // namespace lidartwin::effects_detail
