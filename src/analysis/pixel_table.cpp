@@ -118,7 +118,8 @@ void find_partners(PixelTable& t, const std::vector<ObservedColumn>& observed, s
     const auto i = static_cast<size_t>(row);
     out.range_m = t.ideal_range_m[i];
     out.reflectivity = t.material_reflectivity[i];
-    out.cos_incidence = static_cast<float>(std::cos(static_cast<double>(t.incidence_deg[i]) * std::numbers::pi / 180.0));
+    out.cos_incidence =
+        static_cast<float>(std::cos(static_cast<double>(t.incidence_deg[i]) * std::numbers::pi / 180.0));
     return out;
   };
   size_t first = 0;
@@ -127,7 +128,9 @@ void find_partners(PixelTable& t, const std::vector<ObservedColumn>& observed, s
     for (size_t c = first; c < last; ++c) {
       const int m = observed[c].column;
       for (int r = 0; r < height; ++r) {
-        const auto at = [&](int mm, int rr) { return index[static_cast<size_t>(((mm + width) % width) * height + rr)]; };
+        const auto at = [&](int mm, int rr) {
+          return index[static_cast<size_t>(((mm + width) % width) * height + rr)];
+        };
         const IdealReturn up = r > 0 ? ideal(at(m, r - 1)) : IdealReturn{};
         const IdealReturn down = r + 1 < height ? ideal(at(m, r + 1)) : IdealReturn{};
         const IdealReturn left = ideal(at(m - 1, r)), right = ideal(at(m + 1, r));
@@ -185,10 +188,30 @@ void PixelTable::resize(size_t n) {
   for (auto* v : {&frame}) v->resize(n);
   for (auto* v : {&beam, &column, &material}) v->resize(n);
   time_s.resize(n);
-  for (auto* v : {&range_m, &signal, &reflectivity, &near_ir, &range2_m, &ideal_range_m, &incidence_deg,
-                  &material_reflectivity, &specular, &azimuth_deg, &partner_range_m, &partner_reflectance,
-                  &partner_spacing_rad, &predicted_bias_m, &predicted_sigma_m, &p_detect, &outlier_mix, &partner_mix,
-                  &partner_offset_m, &expected_signal, &expected_near_ir, &window_min_m, &window_max_m, &step_m}) {
+  for (auto* v : {&range_m,
+                  &signal,
+                  &reflectivity,
+                  &near_ir,
+                  &range2_m,
+                  &ideal_range_m,
+                  &incidence_deg,
+                  &material_reflectivity,
+                  &specular,
+                  &azimuth_deg,
+                  &partner_range_m,
+                  &partner_reflectance,
+                  &partner_spacing_rad,
+                  &predicted_bias_m,
+                  &predicted_sigma_m,
+                  &p_detect,
+                  &outlier_mix,
+                  &partner_mix,
+                  &partner_offset_m,
+                  &expected_signal,
+                  &expected_near_ir,
+                  &window_min_m,
+                  &window_max_m,
+                  &step_m}) {
     v->resize(n);
   }
   for (auto* v : {&retro, &edge}) v->resize(n);

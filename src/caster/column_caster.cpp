@@ -121,11 +121,16 @@ void mark_vertical_edges(std::span<IdealReturn> column) {
 void choose_edge_partner(IdealReturn& pixel, std::span<const Neighbour> neighbours) {
   pixel.partner_range_m = pixel.partner_reflectance = pixel.partner_spacing_rad = 0.0f;
   if (!pixel.hit()) return;
+  // A surface seen at incidence theta changes range by about r * spacing * tan(theta) from one
+  // beam to the next: a floor at grazing incidence looks stepped to a fixed threshold, but it is
+  // one surface, whose spread E4 models. A partner must lie beyond twice that.
+  const float c = std::clamp(pixel.cos_incidence, 0.05f, 1.0f);
+  const float slope = pixel.range_m * std::sqrt(1.0f - c * c) / c;  // r tan(theta), per radian
   float largest = 0.0f;
   for (const Neighbour& n : neighbours) {
     if (n.ideal == nullptr || !n.ideal->hit() || !depth_step(pixel.range_m, n.ideal->range_m)) continue;
     const float step = std::abs(n.ideal->range_m - pixel.range_m);
-    if (step <= largest) continue;
+    if (step <= 2.0f * slope * n.spacing_rad || step <= largest) continue;
     largest = step;
     pixel.partner_range_m = n.ideal->range_m;
     pixel.partner_reflectance = n.ideal->reflectivity * n.ideal->cos_incidence;

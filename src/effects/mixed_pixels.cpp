@@ -39,12 +39,12 @@ struct MixedPixelsParameters {
 
 // One pixel's two echoes, as functions of the edge's angle delta from the beam's axis.
 struct Straddle {
-  double r_p, r_q;          // ranges of the pixel's surface and its partner's
-  double full;              // a_p / r_p^2: the pixel's power with the whole footprint on its surface
-  double partner;           // a_q / r_q^2
-  double sigma_rad;         // the footprint's sigma
-  double spacing_rad;       // delta is uniform on (0, spacing)
-  bool merged;              // |r_q - r_p| < L: one return at the power-weighted mean
+  double r_p, r_q;     // ranges of the pixel's surface and its partner's
+  double full;         // a_p / r_p^2: the pixel's power with the whole footprint on its surface
+  double partner;      // a_q / r_q^2
+  double sigma_rad;    // the footprint's sigma
+  double spacing_rad;  // delta is uniform on (0, spacing)
+  bool merged;         // |r_q - r_p| < L: one return at the power-weighted mean
 
   double share_beyond(double delta) const { return phi(-delta / sigma_rad); }
   double power_p(double w) const { return (1.0 - w) * full; }
@@ -155,7 +155,12 @@ class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters
     const double r_p = in.range_m, r_q = in.partner_range_m;
     const double a_p = std::max(static_cast<double>(in.reflectivity * in.cos_incidence), kMinReflectance);
     const double a_q = std::max(static_cast<double>(in.partner_reflectance), kMinReflectance);
-    return Straddle{r_p,   r_q,   a_p / (r_p * r_p), a_q / (r_q * r_q), sigma, in.partner_spacing_rad,
+    return Straddle{r_p,
+                    r_q,
+                    a_p / (r_p * r_p),
+                    a_q / (r_q * r_q),
+                    sigma,
+                    in.partner_spacing_rad,
                     std::abs(r_q - r_p) < params().pulse_length_m};
   }
 };

@@ -1,6 +1,7 @@
 // E5 (its range part) and E16: a return whose measured range falls outside [min_m, max_m], or
 // beyond what the wire format can represent (context.max_wire_range_m, E9), is reported as no
-// return: range 0, signal 0, reflectivity 0 (an Ouster sensor cannot tell these apart, [S24]).
+// return: range 0, signal 0, reflectivity 0 (an Ouster sensor cannot tell these apart, [S24]);
+// likewise a second return (dual profiles).
 // Place it after the noise effects and before quantization: the firmware compares the noisy range.
 #include <algorithm>
 #include <cmath>
@@ -50,6 +51,22 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
       range[b] = r * keep;  // finite values: x * 0 = 0 (or -0, which every reader takes as 0)
       signal[b] *= keep;
       reflectivity[b] *= keep;
+    }
+    // The second return (dual profiles, E15) has the same window; when only it lies inside, it is
+    // the pixel's one return and goes first, as the sensor reports a single detection.
+    float* __restrict range2 = measured.range2_m.data();
+    for (size_t b = 0; b < n; ++b) {
+      const float r = range2[b];
+      range2[b] = (r == 0.0f || (r >= lower && r <= upper)) ? r : 0.0f;
+    }
+    for (size_t b = 0; b < n; ++b) {
+      if (range2[b] == 0.0f) continue;
+      if (range[b] == 0.0f) {
+        range[b] = range2[b];
+        signal[b] = measured.signal2_photons[b];
+        reflectivity[b] = measured.reflectivity2[b];
+      }
+      if (range[b] == range2[b]) range2[b] = measured.signal2_photons[b] = measured.reflectivity2[b] = 0.0f;
     }
   }
 

@@ -47,10 +47,9 @@ struct FrameRenderer::Impl {
     context.signal_gain = setup.signal_gain;
     const auto rows = static_cast<size_t>(setup.format.pixels_per_column);
     const auto block = static_cast<size_t>(setup.format.columns_per_packet);
-    scratch.assign(
-        static_cast<size_t>(pool.size()),
-        Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)), MeasuredColumn(rows),
-                std::vector<IdealReturn>(rows), std::vector<IdealReturn>(rows)});
+    scratch.assign(static_cast<size_t>(pool.size()),
+                   Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)),
+                           MeasuredColumn(rows), std::vector<IdealReturn>(rows), std::vector<IdealReturn>(rows)});
   }
 
   // E6's edge partners of the block's columns, from their rows above and below and the adjacent
@@ -65,7 +64,8 @@ struct FrameRenderer::Impl {
     const auto cast_column = [&](int m) -> std::span<const IdealReturn> {
       if (m < begin) return s.before;
       if (m >= end) return s.after;
-      return observed(m) ? std::span<const IdealReturn>(s.ideal[static_cast<size_t>(m - begin)]) : std::span<const IdealReturn>();
+      return observed(m) ? std::span<const IdealReturn>(s.ideal[static_cast<size_t>(m - begin)])
+                         : std::span<const IdealReturn>();
     };
     for (int m = begin; m < end; ++m) {
       if (!observed(m)) continue;

@@ -95,7 +95,8 @@ TEST(MixedPixels, AStepLongerThanThePulseGivesEitherSurfaceAndASecondReturn) {
         // A pixel on a near board (8 m) whose footprint may reach the wall behind it (20 m), and the
         // wall's pixel whose footprint may reach the board.
         for (const auto& [r, partner] : {std::pair{8.0, 20.0}, std::pair{20.0, 8.0}}) {
-          const IdealReturn in = at_edge(static_cast<float>(r), static_cast<float>(partner), 0.18f, partner_reflectance);
+          const IdealReturn in =
+              at_edge(static_cast<float>(r), static_cast<float>(partner), 0.18f, partner_reflectance);
           const Prediction p = chain.predict(in, {});
           const Draws d = draw(chain, in, 64 * 1024);
           ASSERT_EQ(d.first.size(), d.n);

@@ -66,8 +66,8 @@ class BeamGeometry {
   int rows_ = 0;
   std::vector<BeamRay> rays_;  // column-major like Scan
   int packets_per_column_ = 0;
-  std::vector<RayPacket16> packets_;  // the same rays, column by column
-  BeamIntrinsics beams_;              // for point(), in double precision
+  std::vector<RayPacket16> packets_;   // the same rays, column by column
+  BeamIntrinsics beams_;               // for point(), in double precision
   std::vector<float> row_spacing_;     // [rows - 1]
   std::vector<float> column_spacing_;  // [rows]
 };

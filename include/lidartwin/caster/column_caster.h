@@ -46,8 +46,9 @@ struct Neighbour {
 };
 
 // Sets pixel's partner_* fields from its neighbours: the one hit across the largest depth step
-// (the step of mark_vertical_edges), or none. A miss on either side is no partner: a footprint
-// straddling the sky loses part of its light but keeps its range.
+// (the step of mark_vertical_edges, and more than twice the range change the pixel's own surface
+// makes over the spacing at its incidence), or none. A miss on either side is no partner: a
+// footprint straddling the sky loses part of its light but keeps its range.
 void choose_edge_partner(IdealReturn& pixel, std::span<const Neighbour> neighbours);
 
 // choose_edge_partner for every pixel of column m from its rows above and below and the same row
