@@ -450,6 +450,27 @@ TEST_F(Compare, TheDiagnosisNamesHiddenSignalDependentPrecisionAndRangeWalk) {
   expect_fitted(e3["selected"][0], {{"walk_m", 0.01}}, 0.05);
 }
 
+// E6: footprints across the hall's board edges give returns between or at the other surface.
+// The report shows outliers at depth edges; the diagnosis names mixed_pixels alone and its fitted
+// divergence covers the truth.
+TEST_F(Compare, TheDiagnosisNamesHiddenMixedPixelsAtDepthEdges) {
+  const nlohmann::json report =
+      compare_hidden_effect({{"name", "mixed_pixels"}, {"divergence_rad", 0.004}}, "e6", out("e6"));
+  bool outliers_at_edges = false;
+  for (const auto& f : report["failing"]) {
+    outliers_at_edges = outliers_at_edges || (f["quantity"] == "outliers" && f["features"].contains("edge"));
+  }
+  EXPECT_TRUE(outliers_at_edges) << report["failing"].dump(1);
+  const auto& diagnosis = report["diagnosis"];
+  EXPECT_EQ(diagnosis["verdict"], "missing effect");
+  ASSERT_EQ(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);
+  EXPECT_EQ(diagnosis["selected"][0]["effect"], "mixed_pixels");
+  EXPECT_EQ(diagnosis["selected"][0]["catalogue"], "E6");
+  const auto& divergence = diagnosis["selected"][0]["params"]["divergence_rad"];
+  EXPECT_LE(divergence["ci95"][0].get<double>(), 0.004) << divergence.dump();
+  EXPECT_GE(divergence["ci95"][1].get<double>(), 0.004) << divergence.dump();
+}
+
 // Two hidden effects at once (E4 and E12): the stepwise search keeps both, and nothing else.
 TEST_F(Compare, TheDiagnosisFindsTwoHiddenEffectsTogether) {
   const fs::path dir = out("pair");

@@ -37,6 +37,9 @@ const std::vector<CandidateSpec>& candidate_specs() {
       {"incidence", {{"divergence_rad", 0.002, 0.001}, {"bias_factor", 0.0, 0.2}}},
       {"drift", {{"offset_m", 0.0, 0.005}, {"warmup_offset_m", 0.0, 0.01}, {"warmup_time_s", 1.0, 0.5}}},
       {"dropout", {{"threshold_photons", 1.0, 1.0}, {"width", 0.3, 0.1}}},
+      // The pulse length and the second return's threshold shape what a dual profile's RANGE2
+      // shows, which the likelihood does not score yet: left at their defaults.
+      {"mixed_pixels", {{"divergence_rad", 0.002, 0.001}}},
   };
   return specs;
 }

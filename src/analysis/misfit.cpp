@@ -159,8 +159,9 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   if (t.range_m[i] <= 0.0f) return;
   ++a.returns;
   // Returns from an edge partner (E6) a depth step away fall outside the pixel's own Gaussian too.
-  const double partner =
-      std::abs(f64(t.partner_offset_m[i])) > kOutlierZ * f64(t.predicted_sigma_m[i]) ? f64(t.partner_mix[i]) : 0.0;
+  const double partner = std::abs(f64(t.partner_offset_m[i])) > kOutlierZ * f64(t.predicted_sigma_m[i])
+                             ? partner_share(model_of(t, i))
+                             : 0.0;
   const double pi = std::min(f64(t.outlier_mix[i]) + partner, 1.0);
   a.outliers_expected += pi + (1.0 - pi) * 2.0 * normal_cdf(-kOutlierZ);
   const double z = f64(s.z[i]);

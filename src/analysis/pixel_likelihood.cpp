@@ -15,16 +15,16 @@ double window_mass(const RangeModel& m, double mean) {
   return normal_interval((m.window_min_m - mean) / m.sigma_m, (m.window_max_m - mean) / m.sigma_m);
 }
 
-// The probability of [lo, hi] under the Gaussian part, each component truncated to the window: the
-// pixel's own surface and, with weight partner_mix, its edge partner's (E6).
+// The probability of [lo, hi] under the Gaussian part truncated to the window: the pixel's own
+// surface and, with weight partner_mix, its edge partner's (E6), the mixture renormalized by the
+// mass it has inside the window (a partner inside it may be all that is detected).
 double gaussian_interval(const RangeModel& m, double lo, double hi, double gaussian_mass) {
-  const auto component = [&](double mean, double mass) {
-    return mass > 0.0 ? normal_interval((lo - mean) / m.sigma_m, (hi - mean) / m.sigma_m) / mass : 0.0;
-  };
-  const double own = component(m.mean_m, gaussian_mass);
-  if (m.partner_mix <= 0.0) return own;
+  const auto interval = [&](double mean) { return normal_interval((lo - mean) / m.sigma_m, (hi - mean) / m.sigma_m); };
+  if (m.partner_mix <= 0.0) return gaussian_mass > 0.0 ? interval(m.mean_m) / gaussian_mass : 0.0;
   const double partner_mean = m.mean_m + m.partner_offset_m;
-  return (1.0 - m.partner_mix) * own + m.partner_mix * component(partner_mean, window_mass(m, partner_mean));
+  const double mass = (1.0 - m.partner_mix) * gaussian_mass + m.partner_mix * window_mass(m, partner_mean);
+  if (mass <= 0.0) return 0.0;
+  return ((1.0 - m.partner_mix) * interval(m.mean_m) + m.partner_mix * interval(partner_mean)) / mass;
 }
 
 // The CDF of the returned range (before quantization): the truncated Gaussian part mixed with the
@@ -92,6 +92,13 @@ RangeModel range_model(const Prediction& prediction, double ideal_range_m, doubl
   m.window_min_m = prediction.window_min_m;
   m.window_max_m = std::min(prediction.window_max_m, reach_m);
   return m;
+}
+
+double partner_share(const RangeModel& m) {
+  if (m.partner_mix <= 0.0 || m.sigma_m <= 0.0) return 0.0;
+  const double own = (1.0 - m.partner_mix) * window_mass(m, m.mean_m);
+  const double partner = m.partner_mix * window_mass(m, m.mean_m + m.partner_offset_m);
+  return own + partner > 0.0 ? partner / (own + partner) : 0.0;
 }
 
 PixelScore score_pixel(const RangeModel& m, double measured_range_m, double pit_draw) {

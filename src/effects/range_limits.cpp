@@ -1,7 +1,7 @@
 // E5 (its range part) and E16: a return whose measured range falls outside [min_m, max_m], or
 // beyond what the wire format can represent (context.max_wire_range_m, E9), is reported as no
 // return: range 0, signal 0, reflectivity 0 (an Ouster sensor cannot tell these apart, [S24]);
-// likewise a second return (dual profiles).
+// likewise a second return (dual profiles), which also goes when the first does.
 // Place it after the noise effects and before quantization: the firmware compares the noisy range.
 #include <algorithm>
 #include <cmath>
@@ -52,21 +52,18 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
       signal[b] *= keep;
       reflectivity[b] *= keep;
     }
-    // The second return (dual profiles, E15) has the same window; when only it lies inside, it is
-    // the pixel's one return and goes first, as the sensor reports a single detection.
+    // The second return (dual profiles, E15) has the same window, and goes with the first: a pixel
+    // whose strongest return the window removes reports none (what the firmware does then is not
+    // documented; this keeps predict's detection the first return's alone).
     float* __restrict range2 = measured.range2_m.data();
+    float* __restrict signal2 = measured.signal2_photons.data();
+    float* __restrict reflectivity2 = measured.reflectivity2.data();
     for (size_t b = 0; b < n; ++b) {
       const float r = range2[b];
-      range2[b] = (r == 0.0f || (r >= lower && r <= upper)) ? r : 0.0f;
-    }
-    for (size_t b = 0; b < n; ++b) {
-      if (range2[b] == 0.0f) continue;
-      if (range[b] == 0.0f) {
-        range[b] = range2[b];
-        signal[b] = measured.signal2_photons[b];
-        reflectivity[b] = measured.reflectivity2[b];
-      }
-      if (range[b] == range2[b]) range2[b] = measured.signal2_photons[b] = measured.reflectivity2[b] = 0.0f;
+      const float keep = (range[b] != 0.0f && r >= lower && r <= upper) ? 1.0f : 0.0f;
+      range2[b] = r * keep;
+      signal2[b] *= keep;
+      reflectivity2[b] *= keep;
     }
   }
 
@@ -75,15 +72,14 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
   void predict(const IdealReturn& ideal, const ColumnContext& context, Prediction& prediction) const override {
     const double lower = static_cast<double>(static_cast<float>(params().min_m));
     const double upper = static_cast<double>(std::min(static_cast<float>(params().max_m), context.max_wire_range_m));
-    const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
-    double inside = 0.0;
-    if (prediction.variance_m2 > 0.0) {
+    const auto inside = [&](double mean) {
+      if (prediction.variance_m2 <= 0.0) return (mean >= lower && mean <= upper) ? 1.0 : 0.0;
       const double s = std::sqrt(prediction.variance_m2);
-      inside = normal_cdf((upper - mean) / s) - normal_cdf((lower - mean) / s);
-    } else {
-      inside = (mean >= lower && mean <= upper) ? 1.0 : 0.0;
-    }
-    prediction.p_detect *= inside;
+      return normal_cdf((upper - mean) / s) - normal_cdf((lower - mean) / s);
+    };
+    const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
+    const double partner = prediction.partner_mix;  // E6: a return from the edge partner's surface
+    prediction.p_detect *= (1.0 - partner) * inside(mean) + partner * inside(mean + prediction.partner_offset_m);
     prediction.window_min_m = std::max(prediction.window_min_m, lower);
     prediction.window_max_m = std::min(prediction.window_max_m, upper);
   }

@@ -42,6 +42,10 @@ struct PixelScore {
   bool impossible = false;  // the model gave the measurement (almost) no probability
 };
 
+// Of the detected returns, the share from the edge partner's surface (E6): partner_mix weighted by
+// the two components' mass inside the window.
+double partner_share(const RangeModel& model);
+
 // A return at measured_range_m (a multiple of step_m), or a miss (measured_range_m == 0).
 // pit_draw in [0, 1) spreads the PIT across the measured range bin (lidar-physics.md 3.2).
 PixelScore score_pixel(const RangeModel& model, double measured_range_m, double pit_draw);
