@@ -26,6 +26,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <embree3/rtcore.h>
@@ -307,6 +308,48 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
   }
 }
 
+// Effect chains on the same sensor, scene and rays, (c) / (a) each: the paper's linear law (the
+// chain of profiles/os1-32-paper.json), the OS1-128 datasheet profile's, and every library effect
+// on at once (mixed_pixels casts the columns beside each packet's block as well).
+void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats) {
+  const nlohmann::json every = nlohmann::json::array({
+      {{"name", "radiometry"}},
+      {{"name", "mixed_pixels"}},
+      {{"name", "signal_precision"}, {"k_m", 0.05}},
+      {{"name", "range_walk"}, {"walk_m", 0.005}},
+      {{"name", "incidence"}},
+      {{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}},
+      {{"name", "drift"}, {"warmup_offset_m", 0.02}},
+      s.profile.effects[1],  // the datasheet's piecewise sigma(r)
+      {{"name", "dropout"}, {"threshold_photons", 2.0}},
+      {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
+      {{"name", "range_quantization"}},
+  });
+  const std::pair<const char*, nlohmann::json> chains[] = {
+      {"paper (os1-32-paper's chain)", load_profile("os1-32-paper").effects},
+      {"datasheet (os1-128's chain)", s.profile.effects},
+      {"every effect on", every},
+  };
+  WorkerPool pool(threads);
+  std::printf("\neffect chains, %s: ratio (c) pipeline / raw (a), median of %d\n", scenario.name, repeats);
+  std::vector<RTCRay16> rays;
+  for (const auto& [name, effects] : chains) {
+    ForwardModelSetup setup;
+    setup.render = {
+        s.metadata.beams, s.format(), s.profile.max_range_m, EffectChain::from_json(effects, name), 1, 1.0f};
+    setup.pose_origin_s = scenario.poses->start_s();
+    const ForwardModel model(s.scene, *scenario.poses, setup, pool);
+    if (rays.empty()) rays = prebuilt_rays(s, *scenario.poses, frames, model.renderer().cast_range_m());
+    std::vector<double> ratios;
+    for (int r = 0; r < repeats; ++r) {
+      const Rate a = raw_packets(s, rays, threads);
+      ratios.push_back(pipeline(s, model, frames, threads).pixels.wall_per_s / a.wall_per_s);
+    }
+    std::printf("  %-32s %.3f (min %.3f, max %.3f)\n", name, median(ratios),
+                *std::min_element(ratios.begin(), ratios.end()), *std::max_element(ratios.begin(), ratios.end()));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -324,5 +367,6 @@ int main(int argc, char** argv) {
       {"ground (pose \"15 9 1.7 0 0 0 1\")", std::make_unique<StaticPose>(parse_pose(kGroundPose))},
   };
   for (const Scenario& scenario : scenarios) run_scenario(s, scenario, frames, threads, repeats, only);
+  if (only == "all") chain_ratios(s, scenarios[0], frames, threads, repeats);
   return 0;
 }
