@@ -4,6 +4,7 @@
 // The per-beam values are drawn from unit_seed (one seed = one sensor unit), so the same unit
 // keeps its values across frames, captures and the noise seed. Off by default: no published
 // per-beam range residuals for Ouster units.
+#include <array>
 #include <cmath>
 #include <cstdint>
 
@@ -30,17 +31,18 @@ class BeamCalibration final : public TabledEffect<BeamCalibration, BeamCalibrati
       {"scale_sigma", &P::scale_sigma, {0.0, 0.01}},
       {"unit_seed", &P::unit_seed, {0.0, 4294967295.0}},
   }};
-  using TabledEffect::TabledEffect;
+  // The unit's values are drawn once, not per pixel (two Box-Muller draws cost more than the rest
+  // of the effect: pipeline_bench's every-effect chain).
+  explicit BeamCalibration(const P& p) : TabledEffect(p) {
+    for (uint32_t b = 0; b < kTabled; ++b) table_[b] = draw(b);
+  }
 
   // The unit's offset and scale of one beam.
   struct Beam {
-    double offset_m;
-    double scale;
+    double offset_m = 0.0;
+    double scale = 0.0;
   };
-  Beam beam(uint32_t b) const {
-    const RandomStream unit(static_cast<uint64_t>(params().unit_seed), PixelKey{0, 0, b}, kUnitStream);
-    return {params().offset_sigma_m * unit.normal(0), params().scale_sigma * unit.normal(1)};
-  }
+  Beam beam(uint32_t b) const { return b < kTabled ? table_[b] : draw(b); }
 
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext&, MeasuredColumn& measured) const override {
     float* range = measured.range_m.data();
@@ -57,6 +59,14 @@ class BeamCalibration final : public TabledEffect<BeamCalibration, BeamCalibrati
     prediction.bias_m += b.scale * mean + b.offset_m;
     prediction.variance_m2 *= (1.0 + b.scale) * (1.0 + b.scale);
   }
+
+ private:
+  static constexpr uint32_t kTabled = 128;  // beams of the largest Ouster sensor
+  Beam draw(uint32_t b) const {
+    const RandomStream unit(static_cast<uint64_t>(params().unit_seed), PixelKey{0, 0, b}, kUnitStream);
+    return {params().offset_sigma_m * unit.normal(0), params().scale_sigma * unit.normal(1)};
+  }
+  std::array<Beam, kTabled> table_;
 };
 
 }  // namespace
