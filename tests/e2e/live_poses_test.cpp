@@ -198,7 +198,10 @@ TEST(LivePoses, PointsStayOnTheWallsAfterDeskewingWhileTurningAt90DegPerSecond) 
   EXPECT_EQ(status["rejected"]["magic"].get<int>(), 0);
   EXPECT_EQ(status["lost"].get<int>(), 0);  // refused messages carry sequence 0, not a gap
   EXPECT_EQ(status["columns_without_pose"].get<int>(), 0) << status.dump(2);
-  EXPECT_GT(status["latency"]["count"].get<int>(), 100);
+  // One latency sample per pose revision a sent packet first carried: the renderer casts packets in
+  // batches, so on a loaded host several of the 200 Hz poses fall into one batch and count once.
+  EXPECT_GT(status["latency"]["count"].get<int>(), 25);
+  EXPECT_LE(status["latency"]["count"].get<int>(), status["accepted"].get<int>());
   EXPECT_NE(run.log.find("live poses: refused pose message"), std::string::npos) << run.log;
 }
 
