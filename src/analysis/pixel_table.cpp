@@ -310,6 +310,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
   context.max_wire_range_m = static_cast<float>(wire_max_m);
   context.signal_gain = signal_gain_of(metadata);
+  context.columns_per_frame = static_cast<uint32_t>(width);
 
   // Which columns were observed, and where their pixels go; pose times checked before any cast.
   std::vector<ObservedColumn> observed;

@@ -56,6 +56,7 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
   ColumnContext context;
   context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
   context.max_wire_range_m = static_cast<float>(packets.channel_max(ChannelField::kRange) / 1000.0);
+  context.columns_per_frame = static_cast<uint32_t>(width);
   const double reach = std::min(setup.max_range_m + 1.0, static_cast<double>(context.max_wire_range_m));
 
   // The ideal return each kept pixel stands for. Pixels within 4 sigma of a range limit are left
@@ -77,8 +78,10 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
     if (series[i].returns < std::max<size_t>(min_returns, 2)) continue;
     IdealReturn ideal = ideal_of(series[i]);
     ideal.beam = static_cast<uint16_t>(i % static_cast<size_t>(height));
+    ColumnContext pixel_context = context;  // the column's encoder angle matters to a window sector (E16)
+    pixel_context.column = static_cast<uint32_t>(i / static_cast<size_t>(height));
     const RangeModel model =
-        range_model(setup.chain.predict(ideal, context), ideal.range_m, context.range_step_m, reach);
+        range_model(setup.chain.predict(ideal, pixel_context), ideal.range_m, context.range_step_m, reach);
     if (model.sigma_m <= 0.0) {
       throw InputError(
           "--profile: its effect chain predicts no range spread (variance 0), so static mode has "

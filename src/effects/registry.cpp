@@ -38,6 +38,7 @@ Registry& registry() {
     r->add("beam_calibration", make_beam_calibration, "E10");
     r->add("drift", make_drift, "E12");
     r->add("range_limits", make_range_limits, "E16");
+    r->add("window", make_window, "E16");
     return r;
   }();
   return *instance;

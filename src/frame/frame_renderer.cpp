@@ -45,6 +45,7 @@ struct FrameRenderer::Impl {
     context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
     context.max_wire_range_m = static_cast<float>(packets.channel_max(ChannelField::kRange)) / 1000.0f;
     context.signal_gain = setup.signal_gain;
+    context.columns_per_frame = static_cast<uint32_t>(setup.format.columns_per_frame);
     const auto rows = static_cast<size_t>(setup.format.pixels_per_column);
     const auto block = static_cast<size_t>(setup.format.columns_per_packet);
     scratch.assign(static_cast<size_t>(pool.size()),

@@ -39,7 +39,7 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
             "beam_calibration, drift, dropout, incidence, mixed_pixels, radiometry, range_limits, range_noise_linear, "
-            "range_noise_piecewise, range_quantization, range_walk, signal_precision");
+            "range_noise_piecewise, range_quantization, range_walk, signal_precision, window");
   EXPECT_TRUE(
       error_of(json::array({{{"sigma0_m", 0.01}}}))
           .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
@@ -117,12 +117,19 @@ TEST(EffectRegistry, ListsBuiltInsAndAcceptsNewEffects) {
 
 // Reports name the physics by lidar-physics.md's catalogue id.
 TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
-  const std::map<std::string, std::string> expected{{"range_noise_linear", "E1"}, {"range_noise_piecewise", "E1"},
-                                                    {"signal_precision", "E2"},   {"range_walk", "E3"},
-                                                    {"incidence", "E4"},          {"dropout", "E5"},
-                                                    {"mixed_pixels", "E6"},       {"range_quantization", "E9"},
-                                                    {"beam_calibration", "E10"},  {"drift", "E12"},
-                                                    {"range_limits", "E16"},      {"radiometry", ""}};
+  const std::map<std::string, std::string> expected{{"range_noise_linear", "E1"},
+                                                    {"range_noise_piecewise", "E1"},
+                                                    {"signal_precision", "E2"},
+                                                    {"range_walk", "E3"},
+                                                    {"incidence", "E4"},
+                                                    {"dropout", "E5"},
+                                                    {"mixed_pixels", "E6"},
+                                                    {"range_quantization", "E9"},
+                                                    {"beam_calibration", "E10"},
+                                                    {"drift", "E12"},
+                                                    {"range_limits", "E16"},
+                                                    {"window", "E16"},
+                                                    {"radiometry", ""}};
   for (const std::string& name : lidartwin::registered_effects()) {
     ASSERT_TRUE(expected.count(name)) << name << " is registered but this test does not know its catalogue id";
     EXPECT_EQ(lidartwin::effect_catalogue(name), expected.at(name)) << name;

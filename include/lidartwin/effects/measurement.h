@@ -79,6 +79,12 @@ struct ColumnContext {
   float max_wire_range_m = 524.287f;
   float signal_gain = 1.0f;  // signal_multiplier and lidar-mode integration (E18)
   double time_s = 0.0;       // the column's time since the capture (or stream) began: drift (E12)
+  // The lidar mode's columns per rotation: measurement id `column` sits at encoder angle
+  // 2 pi column / columns_per_frame (window sectors, E16). 0 = not known.
+  uint32_t columns_per_frame = 0;
+  double encoder_angle_deg() const {
+    return columns_per_frame == 0 ? 0.0 : 360.0 * static_cast<double>(column) / static_cast<double>(columns_per_frame);
+  }
 };
 
 }  // namespace lidartwin
