@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "support/record_capture.h"
 
@@ -30,12 +31,14 @@ class RecordDeterminism : public ::testing::Test {
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
   // The plant flight with the profile's full noise chain: moving poses, noise, dropout.
-  std::filesystem::path record(const std::string& name, int seed, int threads) {
+  std::filesystem::path record(const std::string& name, int seed, int threads, const std::string& profile = "os1-64",
+                               const std::string& extra = "") {
     const auto out = dir_ / name;
-    const std::string arguments =
-        "record --profile os1-64 --mode 1024x10 --frames 3 --scene " + (kSource / "scenes/plant.glb").string() +
-        " --trajectory " + (kSource / "scenes/plant_inspection.tum").string() + " --seed " + std::to_string(seed) +
-        " --threads " + std::to_string(threads) + " --out " + out.string();
+    const std::string arguments = "record --profile " + profile + extra + " --mode 1024x10 --frames 3 --scene " +
+                                  (kSource / "scenes/plant.glb").string() + " --trajectory " +
+                                  (kSource / "scenes/plant_inspection.tum").string() + " --seed " +
+                                  std::to_string(seed) + " --threads " + std::to_string(threads) + " --out " +
+                                  out.string();
     EXPECT_EQ(test::run_lidartwin(arguments), 0) << arguments;
     return out;
   }
@@ -51,6 +54,41 @@ TEST_F(RecordDeterminism, SameSeedGivesIdenticalBytesForAnyThreadCount) {
   EXPECT_TRUE(capture == file_bytes(two / "capture.pcap")) << "capture.pcap differs between 1 and 2 threads";
   EXPECT_EQ(file_bytes(one / "metadata.json"), file_bytes(two / "metadata.json"));
   EXPECT_EQ(file_bytes(one / "poses.tum"), file_bytes(two / "poses.tum"));
+}
+
+// Every library effect on at once, in a DUAL profile (second returns from mixed_pixels and the
+// window's near returns, edge partners cast beside each block): still the same bytes.
+TEST_F(RecordDeterminism, EveryEffectOnGivesIdenticalBytesForAnyThreadCount) {
+  std::ifstream in(kSource / "profiles/os1-64.json");
+  nlohmann::json profile = nlohmann::json::parse(in);
+  profile["effects"] = nlohmann::json::array({
+      {{"name", "radiometry"}},
+      {{"name", "mixed_pixels"}},
+      {{"name", "signal_precision"}, {"k_m", 0.05}},
+      {{"name", "range_walk"}, {"walk_m", 0.005}},
+      {{"name", "incidence"}},
+      {{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}},
+      {{"name", "drift"}, {"warmup_offset_m", 0.02}},
+      {{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.15}, {"range_max_m", 100.0}},
+      {{"name", "window"}, {"near_return_probability", 0.05}, {"near_return_range_m", 0.4}},
+      {{"name", "dropout"}, {"threshold_photons", 2.0}},
+      {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
+      {{"name", "range_quantization"}},
+  });
+  const auto path = dir_ / "every_effect.json";
+  std::ofstream(path) << profile.dump(2);
+  const std::string dual = " --udp-profile RNG19_RFL8_SIG16_NIR16_DUAL";
+  const auto one = record("every_one_thread", 5, 1, path.string(), dual);
+  const auto two = record("every_two_threads", 5, 2, path.string(), dual);
+  const std::string capture = file_bytes(one / "capture.pcap");
+  ASSERT_GT(capture.size(), 1'000'000u);
+  EXPECT_TRUE(capture == file_bytes(two / "capture.pcap")) << "capture.pcap differs between 1 and 2 threads";
+  size_t second_returns = 0;
+  for (const auto& [frame_id, scan] : test::decode_capture(one).frames) {
+    for (const uint32_t range2 : scan.channels[static_cast<size_t>(ChannelField::kRange2)])
+      second_returns += range2 != 0;
+  }
+  EXPECT_GT(second_returns, 1000u) << "the every-effect chain makes second returns";
 }
 
 TEST_F(RecordDeterminism, AnotherSeedGivesOtherNoise) {
