@@ -38,7 +38,8 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
 
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
-            "beam_calibration, drift, dropout, incidence, mixed_pixels, radiometry, range_limits, range_noise_linear, "
+            "beam_calibration, drift, dropout, false_alarms, incidence, mixed_pixels, radiometry, range_limits, "
+            "range_noise_linear, "
             "range_noise_piecewise, range_quantization, range_walk, signal_precision, window");
   EXPECT_TRUE(
       error_of(json::array({{{"sigma0_m", 0.01}}}))
@@ -127,6 +128,7 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
                                                     {"range_quantization", "E9"},
                                                     {"beam_calibration", "E10"},
                                                     {"drift", "E12"},
+                                                    {"false_alarms", "E14"},
                                                     {"range_limits", "E16"},
                                                     {"window", "E16"},
                                                     {"radiometry", ""}};
