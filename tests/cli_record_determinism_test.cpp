@@ -73,6 +73,7 @@ TEST_F(RecordDeterminism, EveryEffectOnGivesIdenticalBytesForAnyThreadCount) {
       {{"name", "window"}, {"near_return_probability", 0.05}, {"near_return_range_m", 0.4}},
       {{"name", "dropout"}, {"threshold_photons", 2.0}},
       {{"name", "false_alarms"}, {"probability_at_reference", 0.01}, {"reference_near_ir_photons", 10.0}},
+      {{"name", "shot_noise"}},
       {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
       {{"name", "range_quantization"}},
   });

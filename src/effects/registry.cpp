@@ -38,6 +38,7 @@ Registry& registry() {
     r->add("beam_calibration", make_beam_calibration, "E10");
     r->add("drift", make_drift, "E12");
     r->add("false_alarms", make_false_alarms, "E14");
+    r->add("shot_noise", make_shot_noise, "");  // section 2.2: the channels, not a range error
     r->add("range_limits", make_range_limits, "E16");
     r->add("window", make_window, "E16");
     return r;

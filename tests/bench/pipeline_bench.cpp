@@ -324,6 +324,7 @@ void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int thre
       {{"name", "window"}, {"near_return_probability", 0.01}},
       {{"name", "dropout"}, {"threshold_photons", 2.0}},
       {{"name", "false_alarms"}, {"probability_at_reference", 0.001}},
+      {{"name", "shot_noise"}},
       {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
       {{"name", "range_quantization"}},
   });

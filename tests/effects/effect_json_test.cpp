@@ -40,7 +40,7 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
             "beam_calibration, drift, dropout, false_alarms, incidence, mixed_pixels, radiometry, range_limits, "
             "range_noise_linear, "
-            "range_noise_piecewise, range_quantization, range_walk, signal_precision, window");
+            "range_noise_piecewise, range_quantization, range_walk, shot_noise, signal_precision, window");
   EXPECT_TRUE(
       error_of(json::array({{{"sigma0_m", 0.01}}}))
           .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
@@ -131,7 +131,8 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
                                                     {"false_alarms", "E14"},
                                                     {"range_limits", "E16"},
                                                     {"window", "E16"},
-                                                    {"radiometry", ""}};
+                                                    {"radiometry", ""},
+                                                    {"shot_noise", ""}};
   for (const std::string& name : lidartwin::registered_effects()) {
     ASSERT_TRUE(expected.count(name)) << name << " is registered but this test does not know its catalogue id";
     EXPECT_EQ(lidartwin::effect_catalogue(name), expected.at(name)) << name;

@@ -68,6 +68,10 @@ struct Prediction {
   double partner_mix = 0.0;
   double partner_offset_m = 0.0;
   double p_second = 0.0;
+  // Photon (shot) noise: the variances of the reported SIGNAL and NEAR_IR about the expected
+  // values above (photons^2; 0 = reported exactly).
+  double signal_variance = 0.0;
+  double near_ir_variance = 0.0;
 };
 
 // What the chain knows beyond the pixel: the random-stream key and the wire format's limits.
