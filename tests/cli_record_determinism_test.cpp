@@ -71,6 +71,7 @@ TEST_F(RecordDeterminism, EveryEffectOnGivesIdenticalBytesForAnyThreadCount) {
       {{"name", "drift"}, {"warmup_offset_m", 0.02}},
       {{"name", "range_noise_linear"}, {"sigma0_m", 0.01}, {"sigma_max_m", 0.15}, {"range_max_m", 100.0}},
       {{"name", "window"}, {"near_return_probability", 0.05}, {"near_return_range_m", 0.4}},
+      {{"name", "fog"}, {"attenuation_per_m", 0.01}, {"soft_return_probability", 0.02}},
       {{"name", "dropout"}, {"threshold_photons", 2.0}},
       {{"name", "false_alarms"}, {"probability_at_reference", 0.01}, {"reference_near_ir_photons", 10.0}},
       {{"name", "shot_noise"}},

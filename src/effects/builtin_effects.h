@@ -23,6 +23,7 @@ std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string
 std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, std::string_view source);      // E6
 std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source);  // E10
 std::unique_ptr<Effect> make_drift(const nlohmann::json& params, std::string_view source);             // E12
+std::unique_ptr<Effect> make_fog(const nlohmann::json& params, std::string_view source);               // E13
 std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, std::string_view source);      // E14
 std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, std::string_view source);        // section 2.2
 std::unique_ptr<Effect> make_window(const nlohmann::json& params, std::string_view source);            // E16

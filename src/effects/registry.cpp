@@ -37,6 +37,7 @@ Registry& registry() {
     r->add("range_quantization", make_range_quantization, "E9");
     r->add("beam_calibration", make_beam_calibration, "E10");
     r->add("drift", make_drift, "E12");
+    r->add("fog", make_fog, "E13");
     r->add("false_alarms", make_false_alarms, "E14");
     r->add("shot_noise", make_shot_noise, "");  // section 2.2: the channels, not a range error
     r->add("range_limits", make_range_limits, "E16");

@@ -17,6 +17,7 @@
 #include <cmath>
 
 #include "effects/builtin_effects.h"
+#include "effects/extra_return.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -66,38 +67,17 @@ class Window final : public TabledEffect<Window, WindowParameters> {
     const auto near_range = static_cast<float>(params().near_return_range_m);
     const auto near_signal = static_cast<float>(params().near_return_signal_photons);
     for (uint32_t beam = 0; beam < measured.size(); ++beam) {
-      if (streams(beam).uniform(0) >= params().near_return_probability) continue;
-      const bool first = measured.range_m[beam] == 0.0f || near_signal > measured.signal_photons[beam];
-      if (first) {  // the surface's return, if any, becomes the second
-        measured.range2_m[beam] = measured.range_m[beam];
-        measured.signal2_photons[beam] = measured.signal_photons[beam];
-        measured.reflectivity2[beam] = measured.reflectivity[beam];
-        measured.range_m[beam] = near_range;
-        measured.signal_photons[beam] = near_signal;
-        measured.reflectivity[beam] = 0.0f;  // no calibration holds inside the housing
-      } else if (measured.range2_m[beam] == 0.0f || near_signal > measured.signal2_photons[beam]) {
-        measured.range2_m[beam] = near_range;
-        measured.signal2_photons[beam] = near_signal;
-        measured.reflectivity2[beam] = 0.0f;
+      if (streams(beam).uniform(0) < params().near_return_probability) {
+        add_return(measured, beam, near_range, near_signal);
       }
     }
   }
 
-  // The near return is far from the surface's range: for the first return it is an outlier (the
-  // broad component); a surface return it pushes to second place is still there, as a second.
   void predict(const IdealReturn& ideal, const ColumnContext& context, Prediction& prediction) const override {
     if (!in_sector(context)) return;
     prediction.signal_photons *= params().transmission;
-    const double p = params().near_return_probability;
-    if (p <= 0.0) return;
-    if (!ideal.hit()) {
-      prediction.p_detect = 1.0 - (1.0 - prediction.p_detect) * (1.0 - p);
-      return;
-    }
-    prediction.p_second = 1.0 - (1.0 - prediction.p_second) * (1.0 - p);
-    if (params().near_return_signal_photons > prediction.signal_photons) {
-      prediction.outlier_mix = 1.0 - (1.0 - prediction.outlier_mix) * (1.0 - p);
-    }
+    predict_added_return(prediction, ideal.hit(), params().near_return_probability,
+                         params().near_return_signal_photons);
   }
 };
 

@@ -322,6 +322,7 @@ void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int thre
       {{"name", "drift"}, {"warmup_offset_m", 0.02}},
       s.profile.effects[1],  // the datasheet's piecewise sigma(r)
       {{"name", "window"}, {"near_return_probability", 0.01}},
+      {{"name", "fog"}, {"attenuation_per_m", 0.005}},
       {{"name", "dropout"}, {"threshold_photons", 2.0}},
       {{"name", "false_alarms"}, {"probability_at_reference", 0.001}},
       {{"name", "shot_noise"}},

@@ -38,7 +38,7 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
 
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
-            "beam_calibration, drift, dropout, false_alarms, incidence, mixed_pixels, radiometry, range_limits, "
+            "beam_calibration, drift, dropout, false_alarms, fog, incidence, mixed_pixels, radiometry, range_limits, "
             "range_noise_linear, "
             "range_noise_piecewise, range_quantization, range_walk, shot_noise, signal_precision, window");
   EXPECT_TRUE(
@@ -128,6 +128,7 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
                                                     {"range_quantization", "E9"},
                                                     {"beam_calibration", "E10"},
                                                     {"drift", "E12"},
+                                                    {"fog", "E13"},
                                                     {"false_alarms", "E14"},
                                                     {"range_limits", "E16"},
                                                     {"window", "E16"},
