@@ -38,8 +38,8 @@ class ShotNoise final : public TabledEffect<ShotNoise, ShotNoiseParameters> {
     for (uint32_t beam = 0; beam < measured.size(); ++beam) {
       const RandomStream stream = streams(beam);
       const double b = measured.near_ir_photons[beam];
-      noisy_return(stream.normal_ziggurat(0), f, b, measured.signal_photons[beam], measured.reflectivity[beam]);
-      noisy_return(stream.normal_ziggurat(2), f, b, measured.signal2_photons[beam], measured.reflectivity2[beam]);
+      noisy_return(stream, 0, f, b, measured.signal_photons[beam], measured.reflectivity[beam]);
+      noisy_return(stream, 2, f, b, measured.signal2_photons[beam], measured.reflectivity2[beam]);
       measured.near_ir_photons[beam] = clamped(b + std::sqrt(f * b) * stream.normal_ziggurat(1));
     }
   }
@@ -53,11 +53,13 @@ class ShotNoise final : public TabledEffect<ShotNoise, ShotNoiseParameters> {
  private:
   static float clamped(double photons) { return static_cast<float>(std::max(0.0, photons)); }
 
-  // A return's SIGNAL (0 = no return: left alone) and the REFLECTIVITY computed from it.
-  static void noisy_return(double z, double f, double b, float& signal, float& reflectivity) {
+  // A return's SIGNAL (0 = no return: left alone, and no draw made) and the REFLECTIVITY computed
+  // from it; the normal comes from draw pair `pair` of the pixel's stream.
+  static void noisy_return(const RandomStream& stream, uint32_t pair, double f, double b, float& signal,
+                           float& reflectivity) {
     if (signal <= 0.0f) return;
     const double s = signal;
-    const float noisy = clamped(s + std::sqrt(f * (s + b)) * z);
+    const float noisy = clamped(s + std::sqrt(f * (s + b)) * stream.normal_ziggurat(pair));
     if (reflectivity <= 100.0f) reflectivity = static_cast<float>(static_cast<double>(reflectivity * noisy) / s);
     signal = noisy;
   }
