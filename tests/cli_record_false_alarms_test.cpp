@@ -20,6 +20,7 @@ namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
 using lidartwin::test::decode_capture;
+using lidartwin::test::edited_profile;
 using lidartwin::test::run_lidartwin;
 
 namespace {
@@ -32,21 +33,16 @@ constexpr uint32_t kAlarmSignal = 3;
 
 // profiles/os1-64.json under a bright sky, with or without false alarms.
 fs::path profile(bool alarms) {
-  std::ifstream in(kSource / "profiles/os1-64.json");
-  nlohmann::json p = nlohmann::json::parse(in);
-  auto& effects = p.at("effects");
-  effects.at(0)["ambient_photons"] = 800.0;
-  effects.at(0)["sky_photons"] = kSkyPhotons;
-  if (alarms) {
+  return edited_profile("os1-64", alarms ? "sunny-alarms" : "sunny", [&](nlohmann::json& effects) {
+    effects.at(0)["ambient_photons"] = 800.0;
+    effects.at(0)["sky_photons"] = kSkyPhotons;
+    if (!alarms) return;
     effects.push_back({{"name", "false_alarms"},
                        {"probability_at_reference", kProbability},
                        {"reference_near_ir_photons", kSkyPhotons},
                        {"max_range_m", kMaxRangeM},
                        {"signal_photons", static_cast<double>(kAlarmSignal)}});
-  }
-  const fs::path path = fs::path(testing::TempDir()) / (alarms ? "sunny-alarms.json" : "sunny.json");
-  std::ofstream(path) << p.dump(2);
-  return path;
+  });
 }
 
 fs::path record(bool alarms) {

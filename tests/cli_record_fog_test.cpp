@@ -17,36 +17,26 @@ namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
 using lidartwin::test::decode_capture;
-using lidartwin::test::run_lidartwin;
+using lidartwin::test::edited_profile;
+using lidartwin::test::record_hall;
 
 namespace {
 
-const std::string kHall = std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb";
-const std::string kHallPose = "0 0 4 0 0 0 1";  // scenes/calibration_hall_static.tum
 constexpr double kAlpha = 0.04;
 constexpr double kSoftProbability = 0.05;
 constexpr uint32_t kSoftSignal = 60000;  // stronger than any wall: the soft return is the first
 
 fs::path record(bool fog) {
-  std::ifstream in(std::string(LIDARTWIN_SOURCE_DIR) + "/profiles/os1-64.json");
-  nlohmann::json profile = nlohmann::json::parse(in);
-  if (fog) {
-    profile.at("effects").push_back({{"name", "fog"},
-                                     {"attenuation_per_m", kAlpha},
-                                     {"soft_return_probability", kSoftProbability},
-                                     {"soft_signal_photons", static_cast<double>(kSoftSignal)}});
-  }
   const std::string name = fog ? "fog_on" : "fog_off";
-  const fs::path profile_path = fs::path(testing::TempDir()) / (name + ".json");
-  std::ofstream(profile_path) << profile.dump(2);
-  const fs::path dir = fs::path(testing::TempDir()) / name;
-  fs::remove_all(dir);
-  const std::string args = "record --profile " + profile_path.string() + " --scene " + kHall + " --pose \"" +
-                           kHallPose +
-                           "\" --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 --frames 2 --seed 6 --out " +
-                           dir.string() + " > /dev/null 2>&1";
-  EXPECT_EQ(run_lidartwin(args), 0) << args;
-  return dir;
+  const fs::path profile = edited_profile("os1-64", name, [&](nlohmann::json& effects) {
+    if (!fog) return;
+    effects.push_back({{"name", "fog"},
+                       {"attenuation_per_m", kAlpha},
+                       {"soft_return_probability", kSoftProbability},
+                       {"soft_signal_photons", static_cast<double>(kSoftSignal)}});
+  });
+  return record_hall(name, "--profile " + profile.string() +
+                               " --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 --frames 2 --seed 6");
 }
 
 TEST(RecordFog, SignalFallsExponentiallyWithRangeAndSoftReturnsComeEarly) {

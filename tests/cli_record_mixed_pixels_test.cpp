@@ -19,34 +19,24 @@ namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
 using lidartwin::test::decode_capture;
-using lidartwin::test::run_lidartwin;
+using lidartwin::test::edited_profile;
+using lidartwin::test::record_hall;
 
 namespace {
 
-const std::string kHall = std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb";
-const std::string kHallPose = "0 0 4 0 0 0 1";  // scenes/calibration_hall_static.tum
 const std::string kDual = "RNG19_RFL8_SIG16_NIR16_DUAL";
 
 // profiles/os1-64.json with mixed_pixels after radiometry.
 fs::path profile_with_mixed_pixels() {
-  std::ifstream in(std::string(LIDARTWIN_SOURCE_DIR) + "/profiles/os1-64.json");
-  nlohmann::json profile = nlohmann::json::parse(in);
-  auto& effects = profile.at("effects");
-  const nlohmann::json mixed = {{"name", "mixed_pixels"}, {"second_fraction", 0.05}};
-  effects.insert(effects.begin() + 1, mixed);
-  const fs::path path = fs::path(testing::TempDir()) / "os1-64-mixed.json";
-  std::ofstream(path) << profile.dump(2);
-  return path;
+  return edited_profile("os1-64", "os1-64-mixed", [](nlohmann::json& effects) {
+    const nlohmann::json mixed = {{"name", "mixed_pixels"}, {"second_fraction", 0.05}};
+    effects.insert(effects.begin() + 1, mixed);
+  });
 }
 
 fs::path record(const std::string& profile, const std::string& name, int frames, bool ideal) {
-  const fs::path dir = fs::path(testing::TempDir()) / ("mixed_" + name);
-  fs::remove_all(dir);
-  const std::string args = "record --profile " + profile + " --scene " + kHall + " --pose \"" + kHallPose +
-                           "\" --mode 1024x10 --udp-profile " + kDual + " --frames " + std::to_string(frames) +
-                           " --seed 3 --out " + dir.string() + (ideal ? " --ideal" : "") + " > /dev/null 2>&1";
-  EXPECT_EQ(run_lidartwin(args), 0) << args;
-  return dir;
+  return record_hall("mixed_" + name, "--profile " + profile + " --mode 1024x10 --udp-profile " + kDual + " --frames " +
+                                          std::to_string(frames) + " --seed 3" + (ideal ? " --ideal" : ""));
 }
 
 double range_at(const Scan& scan, ChannelField field, int c, int r) {

@@ -17,30 +17,22 @@ namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
 using lidartwin::test::decode_capture;
-using lidartwin::test::run_lidartwin;
+using lidartwin::test::edited_profile;
+using lidartwin::test::record_hall;
 
 namespace {
 
-const std::string kHall = std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb";
-const std::string kHallPose = "0 0 4 0 0 0 1";  // scenes/calibration_hall_static.tum
 constexpr double kExcessNoise = 2.0;
 constexpr int kFrames = 8;
 
 fs::path record(bool shot_noise) {
-  std::ifstream in(std::string(LIDARTWIN_SOURCE_DIR) + "/profiles/os1-64.json");
-  nlohmann::json profile = nlohmann::json::parse(in);
-  profile.at("effects").at(0)["ambient_photons"] = 400.0;
-  if (shot_noise) profile.at("effects").push_back({{"name", "shot_noise"}, {"excess_noise_factor", kExcessNoise}});
   const std::string name = shot_noise ? "shot_noise_on" : "shot_noise_off";
-  const fs::path profile_path = fs::path(testing::TempDir()) / (name + ".json");
-  std::ofstream(profile_path) << profile.dump(2);
-  const fs::path dir = fs::path(testing::TempDir()) / name;
-  fs::remove_all(dir);
-  const std::string args = "record --profile " + profile_path.string() + " --scene " + kHall + " --pose \"" +
-                           kHallPose + "\" --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 --frames " +
-                           std::to_string(kFrames) + " --seed 4 --out " + dir.string() + " > /dev/null 2>&1";
-  EXPECT_EQ(run_lidartwin(args), 0) << args;
-  return dir;
+  const fs::path profile = edited_profile("os1-64", name, [&](nlohmann::json& effects) {
+    effects.at(0)["ambient_photons"] = 400.0;
+    if (shot_noise) effects.push_back({{"name", "shot_noise"}, {"excess_noise_factor", kExcessNoise}});
+  });
+  return record_hall(name, "--profile " + profile.string() + " --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 " +
+                               "--frames " + std::to_string(kFrames) + " --seed 4");
 }
 
 struct Spread {

@@ -20,47 +20,37 @@ namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
 using lidartwin::test::decode_capture;
-using lidartwin::test::run_lidartwin;
+using lidartwin::test::edited_profile;
+using lidartwin::test::record_hall;
 
 namespace {
 
-const std::string kHall = std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb";
-const std::string kHallPose = "0 0 4 0 0 0 1";  // scenes/calibration_hall_static.tum
 constexpr double kTransmission = 0.25;
 constexpr double kNearProbability = 0.2;
 constexpr uint32_t kNearRangeMm = 350;  // beyond os1-64's 0.3 m minimum range, nearer than any wall
 
-fs::path profile_with_window() {
-  std::ifstream in(std::string(LIDARTWIN_SOURCE_DIR) + "/profiles/os1-64.json");
-  nlohmann::json profile = nlohmann::json::parse(in);
-  profile.at("effects").push_back({{"name", "window"},
-                                   {"sector_start_deg", 90.0},
-                                   {"sector_width_deg", 60.0},
-                                   {"transmission", kTransmission},
-                                   {"near_return_probability", kNearProbability},
-                                   {"near_return_range_m", kNearRangeMm * 1e-3},
-                                   {"near_return_signal_photons", 1e5}});  // stronger than any wall: first
-  const fs::path path = fs::path(testing::TempDir()) / "os1-64-window.json";
-  std::ofstream(path) << profile.dump(2);
-  return path;
-}
-
-fs::path record(const std::string& profile, const std::string& name) {
-  const fs::path dir = fs::path(testing::TempDir()) / ("window_" + name);
-  fs::remove_all(dir);
-  const std::string args = "record --profile " + profile + " --scene " + kHall + " --pose \"" + kHallPose +
-                           "\" --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 --frames 2 --seed 3 --out " +
-                           dir.string() + " > /dev/null 2>&1";
-  EXPECT_EQ(run_lidartwin(args), 0) << args;
-  return dir;
+fs::path record(bool window) {
+  const fs::path profile = edited_profile("os1-64", window ? "window_on" : "window_off", [&](nlohmann::json& effects) {
+    if (!window) return;
+    effects.push_back({{"name", "window"},
+                       {"sector_start_deg", 90.0},
+                       {"sector_width_deg", 60.0},
+                       {"transmission", kTransmission},
+                       {"near_return_probability", kNearProbability},
+                       {"near_return_range_m", kNearRangeMm * 1e-3},
+                       {"near_return_signal_photons", 1e5}});  // stronger than any wall: first
+  });
+  return record_hall(window ? "window_on" : "window_off", "--profile " + profile.string() +
+                                                              " --mode 1024x10 --udp-profile RNG19_RFL8_SIG16_NIR16 "
+                                                              "--frames 2 --seed 3");
 }
 
 // Measurement id m of 1024 sits at encoder angle 360 m / 1024: [90, 150) degrees is m = 256..426.
 bool in_sector(int m) { return m >= 256 && m <= 426; }
 
 TEST(RecordWindow, OnlyTheColumnsInItsSectorChange) {
-  const auto plain = decode_capture(record("os1-64", "plain"));
-  const auto dirty = decode_capture(record(profile_with_window().string(), "dirty"));
+  const auto plain = decode_capture(record(false));
+  const auto dirty = decode_capture(record(true));
   ASSERT_EQ(plain.frames.size(), 2u);
   ASSERT_EQ(dirty.frames.size(), 2u);
   size_t outside_changed = 0, inside = 0, near = 0, range_changed = 0, signal_off = 0, reflectivity_off = 0;

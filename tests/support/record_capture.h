@@ -15,6 +15,7 @@
 
 #include <sys/wait.h>
 
+#include <gtest/gtest.h>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
@@ -31,6 +32,33 @@ inline int run_lidartwin(const std::string& arguments) {
   const std::string command = std::string(LIDARTWIN_BINARY) + " " + arguments;
   const int status = std::system(command.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The calibration hall from its static pose (scenes/calibration_hall_static.tum): the scene the
+// effects' fingerprint tests record.
+inline std::string hall_scene() { return std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb"; }
+inline constexpr const char* kHallPose = "0 0 4 0 0 0 1";
+
+// profiles/<shipped>.json with its effect chain changed by `edit(effects)`, written to the test's
+// temporary directory as <name>.json.
+template <class Edit>
+std::filesystem::path edited_profile(const std::string& shipped, const std::string& name, Edit edit) {
+  std::ifstream in(std::string(LIDARTWIN_SOURCE_DIR) + "/profiles/" + shipped + ".json");
+  nlohmann::json profile = nlohmann::json::parse(in);
+  edit(profile.at("effects"));
+  const auto path = std::filesystem::path(testing::TempDir()) / (name + ".json");
+  std::ofstream(path) << profile.dump(2);
+  return path;
+}
+
+// `lidartwin record <options>` of the hall into the temporary directory <name>, which it returns.
+inline std::filesystem::path record_hall(const std::string& name, const std::string& options) {
+  const auto dir = std::filesystem::path(testing::TempDir()) / name;
+  std::filesystem::remove_all(dir);
+  const std::string args = "record --scene " + hall_scene() + " --pose \"" + kHallPose + "\" " + options + " --out " +
+                           dir.string() + " > /dev/null 2>&1";
+  EXPECT_EQ(run_lidartwin(args), 0) << args;
+  return dir;
 }
 
 // The beam intrinsics read straight from metadata.json's nested sections (3.1).
