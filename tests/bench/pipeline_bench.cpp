@@ -42,6 +42,7 @@
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/record/recorder.h"
 #include "lidartwin/scene/scene.h"
+#include "support/every_effect_chain.h"
 
 namespace {
 
@@ -312,23 +313,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
 // chain of profiles/os1-32-paper.json), the OS1-128 datasheet profile's, and every library effect
 // on at once (mixed_pixels casts the columns beside each packet's block as well).
 void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats) {
-  const nlohmann::json every = nlohmann::json::array({
-      {{"name", "radiometry"}},
-      {{"name", "mixed_pixels"}},
-      {{"name", "signal_precision"}, {"k_m", 0.05}},
-      {{"name", "range_walk"}, {"walk_m", 0.005}},
-      {{"name", "incidence"}},
-      {{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}},
-      {{"name", "drift"}, {"warmup_offset_m", 0.02}},
-      s.profile.effects[1],  // the datasheet's piecewise sigma(r)
-      {{"name", "window"}, {"near_return_probability", 0.01}},
-      {{"name", "fog"}, {"attenuation_per_m", 0.005}},
-      {{"name", "dropout"}, {"threshold_photons", 2.0}},
-      {{"name", "false_alarms"}, {"probability_at_reference", 0.001}},
-      {{"name", "shot_noise"}},
-      {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
-      {{"name", "range_quantization"}},
-  });
+  const nlohmann::json every = test::every_effect_chain(s.profile.effects[1]);  // the datasheet's piecewise sigma(r)
   const std::pair<const char*, nlohmann::json> chains[] = {
       {"paper (os1-32-paper's chain)", load_profile("os1-32-paper").effects},
       {"datasheet (os1-128's chain)", s.profile.effects},

@@ -1,0 +1,28 @@
+#pragma once
+// Every library effect on at once, with values that make each one act: what pipeline_bench prices
+// and what the determinism test records. `range_noise` is the chain's sigma(r) effect.
+#include <nlohmann/json.hpp>
+
+namespace lidartwin::test {
+
+inline nlohmann::json every_effect_chain(const nlohmann::json& range_noise) {
+  return nlohmann::json::array({
+      {{"name", "radiometry"}},
+      {{"name", "mixed_pixels"}},
+      {{"name", "signal_precision"}, {"k_m", 0.05}},
+      {{"name", "range_walk"}, {"walk_m", 0.005}},
+      {{"name", "incidence"}},
+      {{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}},
+      {{"name", "drift"}, {"warmup_offset_m", 0.02}},
+      range_noise,
+      {{"name", "window"}, {"near_return_probability", 0.05}, {"near_return_range_m", 0.4}},
+      {{"name", "fog"}, {"attenuation_per_m", 0.01}, {"soft_return_probability", 0.02}},
+      {{"name", "dropout"}, {"threshold_photons", 2.0}},
+      {{"name", "false_alarms"}, {"probability_at_reference", 0.01}, {"reference_near_ir_photons", 10.0}},
+      {{"name", "shot_noise"}},
+      {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}},
+      {{"name", "range_quantization"}},
+  });
+}
+
+}  // namespace lidartwin::test
