@@ -10,25 +10,14 @@
 
 #include <gtest/gtest.h>
 
+#include "support/cli_run.h"
+
 namespace {
 
+using lidartwin::test::CliRun;
+using lidartwin::test::run_cli;
+
 const std::string kSamples = std::string(LIDARTWIN_TEST_DATA) + "/ouster-samples/";
-
-struct CliRun {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
-
-CliRun run_cli(const std::string& arguments) {
-  CliRun run;
-  FILE* pipe = popen((std::string(LIDARTWIN_BINARY) + " " + arguments + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return run;
-  std::array<char, 512> buffer{};
-  while (fgets(buffer.data(), static_cast<int>(buffer.size()), pipe)) run.output += buffer.data();
-  const int status = pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
-}
 
 bool has_line(const std::string& output, const std::string& line) {
   return output.find(line + "\n") != std::string::npos;
