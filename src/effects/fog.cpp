@@ -14,6 +14,7 @@
 // an example to fit. The radiometry's own attenuation_per_m is clear air; this is the weather.
 #include <cmath>
 
+#include "effects/attenuation.h"
 #include "effects/builtin_effects.h"
 #include "effects/extra_return.h"
 #include "effects/parameters.h"
@@ -55,11 +56,7 @@ class Fog final : public TabledEffect<Fog, FogParameters> {
                 MeasuredColumn& measured) const override {
     for (size_t beam = 0; beam < measured.size(); ++beam) {
       if (!ideal[beam].hit()) continue;
-      const auto tau = static_cast<float>(transmission(ideal[beam].range_m));
-      measured.signal_photons[beam] *= tau;
-      measured.signal2_photons[beam] *= tau;
-      if (measured.reflectivity[beam] <= 100.0f) measured.reflectivity[beam] *= tau;
-      if (measured.reflectivity2[beam] <= 100.0f) measured.reflectivity2[beam] *= tau;
+      attenuate(measured, beam, static_cast<float>(transmission(ideal[beam].range_m)));
     }
     if (params().soft_return_probability <= 0.0) return;
     const ColumnStreams streams = column_streams(context);

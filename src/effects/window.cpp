@@ -16,6 +16,7 @@
 // transmission, no near returns) are an example to edit, not a sourced value.
 #include <cmath>
 
+#include "effects/attenuation.h"
 #include "effects/builtin_effects.h"
 #include "effects/extra_return.h"
 #include "effects/parameters.h"
@@ -56,12 +57,7 @@ class Window final : public TabledEffect<Window, WindowParameters> {
   void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     if (!in_sector(context)) return;
     const auto tau = static_cast<float>(params().transmission);
-    for (size_t beam = 0; beam < measured.size(); ++beam) {
-      measured.signal_photons[beam] *= tau;
-      measured.signal2_photons[beam] *= tau;
-      if (measured.reflectivity[beam] <= 100.0f) measured.reflectivity[beam] *= tau;
-      if (measured.reflectivity2[beam] <= 100.0f) measured.reflectivity2[beam] *= tau;
-    }
+    for (size_t beam = 0; beam < measured.size(); ++beam) attenuate(measured, beam, tau);
     if (params().near_return_probability <= 0.0) return;
     const ColumnStreams streams = column_streams(context);
     const auto near_range = static_cast<float>(params().near_return_range_m);
