@@ -45,7 +45,7 @@ class RenderAhead {
   const EncodedFrame& encoded(uint64_t frame) const { return slots_[frame % slots_.size()]->encoded; }
   // Whether a finished packet has any observed column (false: every column lacked a pose).
   bool observed(uint64_t frame, size_t index) const;
-  // What the pose source had heard when the packet was cast.
+  // What the pose source had heard when a finished packet (packet() not empty) was cast.
   PoseFreshness freshness(uint64_t frame, size_t index) const;
   // Time the worker spent rendering and encoding since the last call.
   uint64_t take_busy_ns() { return busy_ns_.exchange(0); }

@@ -113,7 +113,9 @@ void StreamSession::send_lidar_packet(int64_t now_ns) {
   }
   if (sender_.send(config_->udp_dest, config_->udp_port_lidar, bytes)) {
     counters_.record_lidar_send(now_ns - lidar_deadline_ns());
-    counters_.record_pose_use(render_->freshness(frame_, packet_index_), now_ns);
+    // A blank (stalled) packet was cast with no pose, and its slot may be mid-render: only a packet
+    // the worker published (ready, acquire) reports the poses it carries.
+    if (!stalled) counters_.record_pose_use(render_->freshness(frame_, packet_index_), now_ns);
     if (ground_truth_ && !stalled) ground_truth_->packet_sent(*model_, frame_, packet_index_, render_->encoded(frame_));
   }
 }
