@@ -34,20 +34,19 @@ class FalseAlarms final : public TabledEffect<FalseAlarms, FalseAlarmParameters>
       {"max_range_m", &P::max_range_m, {0.1, 10000.0}},
       {"signal_photons", &P::signal_photons, {0.0, 1e5}},
   }};
-  using TabledEffect::TabledEffect;
+  explicit FalseAlarms(const P& p)
+      : TabledEffect(p), per_photon_(p.probability_at_reference / p.reference_near_ir_photons) {}
 
   std::vector<std::string_view> prerequisites() const override { return {"radiometry"}; }
 
-  double probability(double near_ir) const {
-    return std::min(1.0, params().probability_at_reference * near_ir / params().reference_near_ir_photons);
-  }
+  // The same arithmetic serves both directions, so they agree to the last bit.
+  double probability(double near_ir) const { return std::min(1.0, per_photon_ * near_ir); }
 
   void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
-    const double per_photon = params().probability_at_reference / params().reference_near_ir_photons;
     for (uint32_t beam = 0; beam < measured.size(); ++beam) {
       if (measured.range_m[beam] != 0.0f) continue;
-      const double p = std::min(1.0, per_photon * static_cast<double>(measured.near_ir_photons[beam]));
+      const double p = probability(static_cast<double>(measured.near_ir_photons[beam]));
       if (p <= 0.0) continue;
       const RandomStream stream = streams(beam);
       if (stream.uniform(0) >= p) continue;
@@ -68,6 +67,9 @@ class FalseAlarms final : public TabledEffect<FalseAlarms, FalseAlarmParameters>
       prediction.outlier_mix = (detected * prediction.outlier_mix + alarms) / prediction.p_detect;
     }
   }
+
+ private:
+  double per_photon_;  // probability_at_reference / reference_near_ir_photons
 };
 
 }  // namespace
