@@ -143,6 +143,35 @@ TEST(ColumnCaster, MarksVerticalEdges) {
   for (size_t i = 0; i < 6; ++i) EXPECT_EQ(column[i].edge, expected[i]) << "row " << i;
 }
 
+// E8's input: the nearest retroreflective hit within 8 rows of the same column, the upper one on
+// a tie; a retroreflector itself and pixels farther away get none.
+TEST(ColumnCaster, MarksTheNearestRetroreflectorInTheColumn) {
+  std::vector<IdealReturn> column(40);
+  for (size_t i = 0; i < column.size(); ++i) column[i].range_m = 20.0f;
+  column[10].retroreflective = column[14].retroreflective = 1;
+  column[10].range_m = 7.0f;
+  column[14].range_m = 9.0f;
+  column[39].retro_rows = 5;  // stale, from an earlier column: cleared
+  mark_retro_neighbours(column);
+  const auto expect = [&](size_t row, int rows, float range) {
+    EXPECT_EQ(column[row].retro_rows, rows) << "row " << row;
+    EXPECT_EQ(column[row].retro_range_m, range) << "row " << row;
+  };
+  expect(2, 8, 7.0f);
+  expect(1, 0, 0.0f);  // 9 rows above the first
+  expect(9, 1, 7.0f);
+  expect(10, 0, 0.0f);  // a retroreflector
+  expect(12, 2, 7.0f);  // midway: the upper one
+  expect(13, 1, 9.0f);
+  expect(22, 8, 9.0f);
+  expect(23, 0, 0.0f);
+  expect(39, 0, 0.0f);
+  std::vector<IdealReturn> plain(8);
+  plain[3].retro_rows = 2;
+  mark_retro_neighbours(plain);
+  EXPECT_EQ(plain[3].retro_rows, 0) << "no retroreflector in the column";
+}
+
 TEST(ColumnCaster, EdgePartnersAreTheHitsAcrossTheLargestDepthStep) {
   const BeamIntrinsics beams = sample_beams();
   const BeamGeometry geometry(beams, 1024);

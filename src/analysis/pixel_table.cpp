@@ -201,6 +201,7 @@ void PixelTable::resize(size_t n) {
                   &partner_range_m,
                   &partner_reflectance,
                   &partner_spacing_rad,
+                  &retro_range_m,
                   &predicted_bias_m,
                   &predicted_sigma_m,
                   &p_detect,
@@ -214,7 +215,7 @@ void PixelTable::resize(size_t n) {
                   &step_m}) {
     v->resize(n);
   }
-  for (auto* v : {&retro, &edge}) v->resize(n);
+  for (auto* v : {&retro, &edge, &retro_rows}) v->resize(n);
 }
 
 void PixelTable::set_measured(size_t i, uint32_t f, const Scan& scan, int m, int r) {
@@ -244,6 +245,8 @@ void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
   partner_range_m[i] = ideal.partner_range_m;
   partner_reflectance[i] = ideal.partner_reflectance;
   partner_spacing_rad[i] = ideal.partner_spacing_rad;
+  retro_rows[i] = ideal.retro_rows;
+  retro_range_m[i] = ideal.retro_range_m;
 }
 
 void PixelTable::set_prediction(size_t i, const Prediction& prediction, const RangeModel& model) {
@@ -273,6 +276,8 @@ IdealReturn PixelTable::ideal_of(size_t i) const {
   ideal.partner_range_m = partner_range_m[i];
   ideal.partner_reflectance = partner_reflectance[i];
   ideal.partner_spacing_rad = partner_spacing_rad[i];
+  ideal.retro_rows = retro_rows[i];
+  ideal.retro_range_m = retro_range_m[i];
   return ideal;
 }
 

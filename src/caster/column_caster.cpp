@@ -118,6 +118,32 @@ void mark_vertical_edges(std::span<IdealReturn> column) {
   if (n > 1) column[n - 1].edge = step[n - 2];
 }
 
+void mark_retro_neighbours(std::span<IdealReturn> column) {
+  // Most columns see no retroreflector: one pass over the flags, and nothing more to do.
+  std::array<int, kMaxRows> retros;
+  size_t count = 0;
+  for (size_t r = 0; r < column.size() && count < kMaxRows; ++r) {
+    column[r].retro_rows = 0;
+    column[r].retro_range_m = 0.0f;
+    if (column[r].retroreflective) retros[count++] = static_cast<int>(r);
+  }
+  if (count == 0) return;
+  const int reach = IdealReturn::kRetroReachRows;
+  size_t next = 0;  // the first retro row at or below r
+  for (size_t r = 0; r < column.size(); ++r) {
+    const int row = static_cast<int>(r);
+    while (next < count && retros[next] < row) ++next;
+    IdealReturn& pixel = column[r];
+    if (pixel.retroreflective) continue;
+    const int above = next > 0 ? row - retros[next - 1] : reach + 1;
+    const int below = next < count ? retros[next] - row : reach + 1;
+    const int distance = std::min(above, below);
+    if (distance > reach) continue;
+    pixel.retro_rows = static_cast<uint8_t>(distance);
+    pixel.retro_range_m = column[static_cast<size_t>(above <= below ? row - above : row + below)].range_m;
+  }
+}
+
 void choose_edge_partner(IdealReturn& pixel, std::span<const Neighbour> neighbours) {
   pixel.partner_range_m = pixel.partner_reflectance = pixel.partner_spacing_rad = 0.0f;
   if (!pixel.hit()) return;
@@ -178,6 +204,7 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
               out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
   }
   mark_vertical_edges(out);
+  mark_retro_neighbours(out);
 }
 
 }  // namespace lidartwin

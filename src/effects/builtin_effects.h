@@ -21,7 +21,9 @@ std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, std:
 std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, std::string_view source);        // E3
 std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string_view source);         // E4
 std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, std::string_view source);      // E6
+std::unique_ptr<Effect> make_halo(const nlohmann::json& params, std::string_view source);              // E8
 std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source);  // E10
+std::unique_ptr<Effect> make_vibration(const nlohmann::json& params, std::string_view source);         // E11
 std::unique_ptr<Effect> make_drift(const nlohmann::json& params, std::string_view source);             // E12
 std::unique_ptr<Effect> make_fog(const nlohmann::json& params, std::string_view source);               // E13
 std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, std::string_view source);      // E14

@@ -113,6 +113,18 @@ bool EffectChain::needs_edge_partners() const {
   return std::any_of(effects_.begin(), effects_.end(), [](const auto& e) { return e->needs_edge_partners(); });
 }
 
+bool EffectChain::moves_sensor() const {
+  return std::any_of(effects_.begin(), effects_.end(), [](const auto& e) { return e->moves_sensor(); });
+}
+
+Pose EffectChain::moved_pose(const Pose& world_from_sensor, const ColumnContext& context) const {
+  Pose pose = world_from_sensor;
+  for (const auto& effect : effects_) {
+    if (effect->moves_sensor()) pose = effect->moved_pose(pose, context);
+  }
+  return pose;
+}
+
 EffectChain EffectChain::with_effect(std::shared_ptr<const Effect> effect) const {
   EffectChain chain = *this;
   chain.effects_.push_back(placed(*effect, chain.effects_.size()));

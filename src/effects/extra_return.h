@@ -24,19 +24,22 @@ inline void add_return(MeasuredColumn& measured, size_t beam, float range_m, flo
   }
 }
 
-// The same in distribution: with probability p such a return is added to a pixel. For a surface
-// it makes a second return, and when it is the stronger it is the first return, far from the
-// surface's range: the broad outlier component. Where nothing was hit it is the only return.
+// The same in distribution: with probability p such a return is added to a pixel, whose returns
+// so far (prediction.p_detect: earlier effects may have lost some) it joins. For a surface it
+// makes a second return, and when it is the stronger it is the first return, far from the
+// surface's range: the broad outlier component; where the surface gave nothing it is the only
+// return, an outlier too. Where nothing was hit it is the only return.
 inline void predict_added_return(Prediction& prediction, bool hit, double p, double signal_photons) {
   if (p <= 0.0) return;
-  if (!hit) {
-    prediction.p_detect = 1.0 - (1.0 - prediction.p_detect) * (1.0 - p);
-    return;
+  const double before = prediction.p_detect;
+  const double after = 1.0 - (1.0 - before) * (1.0 - p);
+  // Two returns: there were two already, or one and this adds the other.
+  prediction.p_second += (before - prediction.p_second) * p;
+  if (hit && after > 0.0) {
+    const double displaced = signal_photons > prediction.signal_photons ? p * (1.0 - prediction.outlier_mix) : 0.0;
+    prediction.outlier_mix = (before * (prediction.outlier_mix + displaced) + (1.0 - before) * p) / after;
   }
-  prediction.p_second = 1.0 - (1.0 - prediction.p_second) * (1.0 - p);
-  if (signal_photons > prediction.signal_photons) {
-    prediction.outlier_mix = 1.0 - (1.0 - prediction.outlier_mix) * (1.0 - p);
-  }
+  prediction.p_detect = after;
 }
 
 }  // namespace lidartwin::effects_detail

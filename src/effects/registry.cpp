@@ -34,8 +34,10 @@ Registry& registry() {
     r->add("incidence", make_incidence, "E4");
     r->add("dropout", make_dropout, "E5");
     r->add("mixed_pixels", make_mixed_pixels, "E6");
+    r->add("halo", make_halo, "E8");
     r->add("range_quantization", make_range_quantization, "E9");
     r->add("beam_calibration", make_beam_calibration, "E10");
+    r->add("vibration", make_vibration, "E11");
     r->add("drift", make_drift, "E12");
     r->add("fog", make_fog, "E13");
     r->add("false_alarms", make_false_alarms, "E14");

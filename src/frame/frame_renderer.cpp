@@ -39,6 +39,7 @@ struct FrameRenderer::Impl {
         caster(scene, geometry, cast_range),
         encoder(packets),
         partners(setup.chain.needs_edge_partners()),
+        moves(setup.chain.moves_sensor()),
         pool(worker_pool) {
     assert(setup.beams.pixels_per_column() == setup.format.pixels_per_column);
     context.seed = setup.seed;
@@ -55,8 +56,9 @@ struct FrameRenderer::Impl {
 
   // E6's edge partners of the block's columns, from their rows above and below and the adjacent
   // columns. The columns just outside the block are cast again here, from the pose of the block's
-  // column beside them (a column's time apart: the same place); unobserved columns in the block
-  // were not cast and give no partners.
+  // column beside them (a column's time apart: the same place; not moved by vibration, whose
+  // jitter between neighbours is far below a depth step); unobserved columns in the block were not
+  // cast and give no partners.
   void find_partners(const FrameColumns& columns, int begin, int end, Scratch& s) const {
     const int width = setup.format.columns_per_frame;
     const auto observed = [&](int m) { return columns.observed[static_cast<size_t>((m + width) % width)] != 0; };
@@ -81,7 +83,9 @@ struct FrameRenderer::Impl {
     for (int m = begin; m < end; ++m) {
       const auto column = static_cast<size_t>(m);
       if (!columns.observed[column]) continue;
-      caster.cast(m, columns.poses[column], s.ideal[static_cast<size_t>(m - begin)]);
+      const Pose& pose = columns.poses[column];
+      caster.cast(m, moves ? setup.chain.moved_pose(pose, column_context(columns, m)) : pose,
+                  s.ideal[static_cast<size_t>(m - begin)]);
     }
     if (partners) find_partners(columns, begin, end, s);
     for (int m = begin; m < end; ++m) {
@@ -89,13 +93,17 @@ struct FrameRenderer::Impl {
         encoder.clear(m, scan);
         continue;
       }
-      ColumnContext column_context = context;
-      column_context.frame = columns.frame_index;
-      column_context.column = static_cast<uint32_t>(m);
-      if (!columns.times_s.empty()) column_context.time_s = columns.times_s[static_cast<size_t>(m)];
-      setup.chain.simulate(s.ideal[static_cast<size_t>(m - begin)], column_context, s.measured);
+      setup.chain.simulate(s.ideal[static_cast<size_t>(m - begin)], column_context(columns, m), s.measured);
       encoder.write(s.measured, m, scan);
     }
+  }
+
+  ColumnContext column_context(const FrameColumns& columns, int m) const {
+    ColumnContext c = context;
+    c.frame = columns.frame_index;
+    c.column = static_cast<uint32_t>(m);
+    if (!columns.times_s.empty()) c.time_s = columns.times_s[static_cast<size_t>(m)];
+    return c;
   }
 
   RenderSetup setup;
@@ -105,6 +113,7 @@ struct FrameRenderer::Impl {
   ColumnCaster caster;
   frame_detail::ChannelEncoder encoder;
   bool partners;  // the chain reads edge partners (E6)
+  bool moves;     // the chain moves the sensor (E11): columns are cast from the moved pose
   ColumnContext context;
   WorkerPool& pool;
   mutable std::vector<Scratch> scratch;  // one per pool worker

@@ -38,9 +38,9 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
 
   EXPECT_EQ(error_of(json::array({{{"name", "range_noise_gaussian"}}})),
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
-            "beam_calibration, drift, dropout, false_alarms, fog, incidence, mixed_pixels, radiometry, range_limits, "
-            "range_noise_linear, "
-            "range_noise_piecewise, range_quantization, range_walk, shot_noise, signal_precision, window");
+            "beam_calibration, drift, dropout, false_alarms, fog, halo, incidence, mixed_pixels, radiometry, "
+            "range_limits, range_noise_linear, "
+            "range_noise_piecewise, range_quantization, range_walk, shot_noise, signal_precision, vibration, window");
   EXPECT_TRUE(
       error_of(json::array({{{"sigma0_m", 0.01}}}))
           .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
@@ -125,8 +125,10 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
                                                     {"incidence", "E4"},
                                                     {"dropout", "E5"},
                                                     {"mixed_pixels", "E6"},
+                                                    {"halo", "E8"},
                                                     {"range_quantization", "E9"},
                                                     {"beam_calibration", "E10"},
+                                                    {"vibration", "E11"},
                                                     {"drift", "E12"},
                                                     {"fog", "E13"},
                                                     {"false_alarms", "E14"},

@@ -47,6 +47,9 @@ struct PixelTable {
   std::vector<float> partner_range_m;
   std::vector<float> partner_reflectance;
   std::vector<float> partner_spacing_rad;
+  // The nearest retroreflective hit in the pixel's own column (IdealReturn::retro_*, E8).
+  std::vector<uint8_t> retro_rows;
+  std::vector<float> retro_range_m;
   // The chain's prediction.
   std::vector<float> predicted_bias_m;
   std::vector<float> predicted_sigma_m;  // of the range before quantization

@@ -39,6 +39,11 @@ class ColumnCaster {
 // differs by a depth step (> max(0.3 m, 5 % of the farther range)) or only one of the two hit.
 void mark_vertical_edges(std::span<IdealReturn> column);
 
+// Sets IdealReturn::retro_rows and retro_range_m of every pixel that is not itself
+// retroreflective from the nearest retroreflective hit within kRetroReachRows rows of the column
+// (the upper one on a tie).
+void mark_retro_neighbours(std::span<IdealReturn> column);
+
 // A pixel's neighbour as the footprint model sees it (E6).
 struct Neighbour {
   const IdealReturn* ideal = nullptr;  // null: none (the frame's end, a column not cast)

@@ -19,6 +19,12 @@ struct IdealReturn {
   float partner_range_m = 0.0f;
   float partner_reflectance = 0.0f;
   float partner_spacing_rad = 0.0f;
+  // E8: the nearest retroreflective hit in the same column within kRetroReachRows rows (all beams
+  // of a column fire at once, so its stray light reaches their detectors): how many rows away
+  // (0 = none, or this pixel is one) and its range. Set by the caster for every column.
+  float retro_range_m = 0.0f;
+  uint8_t retro_rows = 0;
+  static constexpr uint8_t kRetroReachRows = 8;
   bool hit() const { return range_m > 0.0f; }
   bool has_partner() const { return partner_range_m > 0.0f; }
 };

@@ -12,6 +12,7 @@
 
 #include "lidartwin/caster/ideal_return.h"
 #include "lidartwin/effects/measurement.h"
+#include "lidartwin/pose/pose.h"
 #include "lidartwin/random/counter_rng.h"
 
 namespace lidartwin {
@@ -47,6 +48,12 @@ class Effect {
   virtual std::vector<std::string_view> prerequisites() const { return {}; }
   // Whether it reads IdealReturn's partner_* fields, which the caster then fills (E6).
   virtual bool needs_edge_partners() const { return false; }
+  // Effects that move the sensor (vibration, E11) simulate through the cast: the renderer casts
+  // each column from moved_pose(the column's pose); their simulate() leaves the pixels alone and
+  // predict() folds in what the motion does to a surface's range. A pure function of the pose
+  // and the column's context (time), so any thread count casts the same rays.
+  virtual bool moves_sensor() const { return false; }
+  virtual Pose moved_pose(const Pose& world_from_sensor, const ColumnContext&) const { return world_from_sensor; }
 
   void set_stream_id(uint32_t id) { stream_id_ = id; }
   uint32_t stream_id() const { return stream_id_; }

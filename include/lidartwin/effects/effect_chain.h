@@ -46,6 +46,10 @@ class EffectChain {
   const std::vector<std::shared_ptr<const Effect>>& effects() const { return effects_; }
   // Whether any effect reads the ideal returns' edge partners (the caster finds them only then).
   bool needs_edge_partners() const;
+  // Whether any effect moves the sensor (E11), and the pose a column is then cast from: each such
+  // effect's moved_pose in chain order.
+  bool moves_sensor() const;
+  Pose moved_pose(const Pose& world_from_sensor, const ColumnContext& context) const;
   // Copies of `effect` placed at the end or at `index`, with that position's stream id.
   EffectChain with_effect(std::shared_ptr<const Effect> effect) const;  // appended
   EffectChain replacing(size_t index, std::shared_ptr<const Effect> effect) const;
