@@ -16,6 +16,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "support/table_profile.h"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -23,6 +25,13 @@ namespace {
 const std::string kSource = LIDARTWIN_SOURCE_DIR;
 const std::string kHall = kSource + "/scenes/calibration_hall.glb";
 const std::string kHallPose = kSource + "/scenes/calibration_hall_static.tum";
+
+// os1-64 with the datasheet table's effects only (support/table_profile.h): the chain these tests
+// record with, compare against and hide effects from.
+std::string os1_64() {
+  static const std::string path = table_profiles::table_profile("os1-64").string();
+  return path;
+}
 
 struct CliRun {
   int code = -1;
@@ -58,7 +67,7 @@ class Compare : public ::testing::Test {
     // ctest runs each test as its own process, several at once: each records its own capture.
     hall_ = fs::path(testing::TempDir()) / ("compare_hall_os1-64_" + std::to_string(getpid()));
     fs::remove_all(hall_);
-    const CliRun r = lidartwin("record --profile os1-64 --scene " + kHall + " --trajectory " + kHallPose +
+    const CliRun r = lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
                                " --frames 20 --seed 11 --out " + hall_.string());
     ASSERT_EQ(r.code, 0) << r.err;
   }
@@ -88,8 +97,8 @@ class Compare : public ::testing::Test {
 
 TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   const fs::path dir = out("self");
-  const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall + " --profile os1-64 --out " +
-                             dir.string());
+  const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall + " --profile " + os1_64() +
+                             " --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("no region fails"), std::string::npos) << r.out;
   const nlohmann::json report = read_json(dir / "report.json");
@@ -184,7 +193,7 @@ TEST_F(Compare, ThePapersLinearLawFailsTheDatasheetCaptureInTheRangeBandsWhereTh
 // datasheet's sigma (10 mm to 20 m, 20 mm to 50 m), read from the report's range bins.
 TEST_F(Compare, StaticModeFindsTheProfilesPrecisionWithoutAScene) {
   const fs::path dir = out("static");
-  const CliRun r = lidartwin("compare --static --capture " + hall_.string() + " --profile os1-64 --out " +
+  const CliRun r = lidartwin("compare --static --capture " + hall_.string() + " --profile " + os1_64() + " --out " +
                              dir.string() + " --no-plots");
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json report = read_json(dir / "report.json");
@@ -224,7 +233,7 @@ TEST_F(Compare, RefinePoseUndoesAPoseErrorBeforeComparing) {
   // The true pose is "0 0 4" facing +X; this one is moved by (+5, -3, +2) cm and yawed by 1 degree.
   std::ofstream(poses) << "0 0.05 -0.03 4.02 0 0 0.0087265355 0.9999619231\n";
   const std::string inputs = "compare --capture " + hall_.string() + " --scene " + kHall + " --pose " + poses.string() +
-                             " --profile os1-64 --no-plots --out ";
+                             " --profile " + os1_64() + " --no-plots --out ";
   const fs::path off = out("pose_off");
   ASSERT_EQ(lidartwin(inputs + off.string()).code, 0);
   const nlohmann::json blamed = read_json(off / "report.json");
@@ -252,7 +261,7 @@ TEST_F(Compare, RefinePoseUndoesAPoseErrorBeforeComparing) {
 
 // os1-64's profile with one more effect from the library, before its range limits.
 fs::path profile_with(const nlohmann::json& effect, const std::string& name) {
-  nlohmann::json profile = read_json(kSource + "/profiles/os1-64.json");
+  nlohmann::json profile = read_json(os1_64());
   auto& effects = profile["effects"];
   auto limits = std::find_if(effects.begin(), effects.end(), [](const auto& e) { return e["name"] == "range_limits"; });
   effects.insert(limits, effect);
@@ -271,8 +280,8 @@ nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::st
                 .code,
             0);
   const CliRun r =
-      lidartwin("compare --capture " + capture.string() + " --scene " + kHall + " --profile os1-64 --no-plots" +
-                (diagnose ? " --diagnose" : "") + " --out " + (out_dir / "report").string());
+      lidartwin("compare --capture " + capture.string() + " --scene " + kHall + " --profile " + os1_64() +
+                " --no-plots" + (diagnose ? " --diagnose" : "") + " --out " + (out_dir / "report").string());
   EXPECT_EQ(r.code, 0) << r.err;
   return read_json(out_dir / "report" / "report.json");
 }
@@ -368,7 +377,8 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   compare_hidden_effect(effect, "fit_e12", dir, /*diagnose=*/false);
   const fs::path fitted = dir / "fitted.json";
   const std::string measured = " --capture " + (dir / "capture").string() + " --scene " + kHall;
-  const CliRun r = lidartwin("fit" + measured + " --frames 10 --profile os1-64 --add drift --out " + fitted.string());
+  const CliRun r =
+      lidartwin("fit" + measured + " --frames 10 --profile " + os1_64() + " --add drift --out " + fitted.string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("drift (E12)"), std::string::npos) << r.out;
   const nlohmann::json profile = read_json(fitted);
@@ -378,7 +388,7 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   EXPECT_GE(ci[1].get<double>(), 0.03);
 
   const fs::path held_out = dir / "held_out";
-  const CliRun compared = lidartwin("compare" + measured + " --skip-frames 10 --profile os1-64 --profile " +
+  const CliRun compared = lidartwin("compare" + measured + " --skip-frames 10 --profile " + os1_64() + " --profile " +
                                     fitted.string() + " --no-plots --out " + held_out.string());
   ASSERT_EQ(compared.code, 0) << compared.err;
   EXPECT_NE(compared.out.find("the error across the profiles"), std::string::npos) << compared.out;
@@ -398,8 +408,8 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   EXPECT_LT(after["bias_rms_m"].get<double>(), before["bias_rms_m"].get<double>());
   EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];  // the report is the last profile's
 
-  const CliRun refused =
-      lidartwin("fit" + measured + " --profile os1-64 --add beam_calibration --out " + (dir / "no.json").string());
+  const CliRun refused = lidartwin("fit" + measured + " --profile " + os1_64() + " --add beam_calibration --out " +
+                                   (dir / "no.json").string());
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("--add beam_calibration: not an effect the fit can estimate"), std::string::npos)
       << refused.err;
@@ -475,7 +485,7 @@ TEST_F(Compare, TheDiagnosisNamesHiddenMixedPixelsAtDepthEdges) {
 TEST_F(Compare, TheDiagnosisFindsTwoHiddenEffectsTogether) {
   const fs::path dir = out("pair");
   const fs::path capture = dir / "capture";
-  nlohmann::json profile = read_json(kSource + "/profiles/os1-64.json");
+  nlohmann::json profile = read_json(os1_64());
   auto& effects = profile["effects"];
   auto limits = std::find_if(effects.begin(), effects.end(), [](const auto& e) { return e["name"] == "range_limits"; });
   limits = effects.insert(limits, nlohmann::json{{"name", "incidence"}});
@@ -485,8 +495,8 @@ TEST_F(Compare, TheDiagnosisFindsTwoHiddenEffectsTogether) {
   const CliRun recorded = lidartwin("record --profile " + path.string() + " --scene " + kHall + " --trajectory " +
                                     kHallPose + " --frames 20 --seed 5 --out " + capture.string());
   ASSERT_EQ(recorded.code, 0) << recorded.err;
-  const CliRun r = lidartwin("compare --capture " + capture.string() + " --scene " + kHall +
-                             " --profile os1-64 --no-plots --diagnose --out " + (dir / "report").string());
+  const CliRun r = lidartwin("compare --capture " + capture.string() + " --scene " + kHall + " --profile " + os1_64() +
+                             " --no-plots --diagnose --out " + (dir / "report").string());
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json diagnosis = read_json(dir / "report" / "report.json")["diagnosis"];
   ASSERT_EQ(diagnosis["selected"].size(), 2u) << diagnosis.dump(1);
@@ -502,8 +512,8 @@ TEST_F(Compare, TheDiagnosisFindsTwoHiddenEffectsTogether) {
 // The null case: the profile that made the capture; no candidate improves BIC.
 TEST_F(Compare, TheDiagnosisFindsNothingMissingWhenNothingIs) {
   const fs::path dir = out("null_diagnosis");
-  const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall +
-                             " --profile os1-64 --no-plots --diagnose --out " + dir.string());
+  const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall + " --profile " + os1_64() +
+                             " --no-plots --diagnose --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json diagnosis = read_json(dir / "report.json")["diagnosis"];
   EXPECT_EQ(diagnosis["verdict"], "no missing effect") << diagnosis.dump(1);
@@ -516,12 +526,13 @@ TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {
   const fs::path other = fs::path(testing::TempDir()) / ("compare_hall_512_" + std::to_string(getpid()));
   fs::remove_all(other);
   made_.push_back(other);
-  ASSERT_EQ(lidartwin("record --profile os1-64 --scene " + kHall + " --trajectory " + kHallPose +
+  ASSERT_EQ(lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
                       " --mode 512x10 --frames 4 --seed 11 --out " + other.string())
                 .code,
             0);
-  const std::string err = refused("--capture " + (other / "capture.pcap").string() + " --metadata " +
-                                  (hall_ / "metadata.json").string() + " --pose " + kHallPose + " --profile os1-64");
+  const std::string err =
+      refused("--capture " + (other / "capture.pcap").string() + " --metadata " + (hall_ / "metadata.json").string() +
+              " --pose " + kHallPose + " --profile " + os1_64());
   EXPECT_NE(err.find("frames is complete for the metadata's lidar mode 1024x10 (64 packets per frame; the fullest "
                      "has 32)"),
             std::string::npos)
@@ -533,19 +544,21 @@ TEST_F(Compare, ACaptureOfAnotherSessionThanItsMetadataIsRefused) {
   const fs::path other = fs::path(testing::TempDir()) / ("compare_hall_seed12_" + std::to_string(getpid()));
   fs::remove_all(other);
   made_.push_back(other);
-  ASSERT_EQ(lidartwin("record --profile os1-64 --scene " + kHall + " --trajectory " + kHallPose +
+  ASSERT_EQ(lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
                       " --frames 2 --seed 12 --out " + other.string())
                 .code,
             0);
-  const std::string err = refused("--capture " + (other / "capture.pcap").string() + " --metadata " +
-                                  (hall_ / "metadata.json").string() + " --pose " + kHallPose + " --profile os1-64");
+  const std::string err =
+      refused("--capture " + (other / "capture.pcap").string() + " --metadata " + (hall_ / "metadata.json").string() +
+              " --pose " + kHallPose + " --profile " + os1_64());
   EXPECT_NE(err.find("come from another sensor or session (init_id/prod_sn differ"), std::string::npos) << err;
 }
 
 TEST_F(Compare, PosesThatDoNotCoverTheCaptureAreRefused) {
   const fs::path poses = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_late_poses.tum");
   std::ofstream(poses) << "50 0 0 4 0 0 0 1\n51 0 0 4 0 0 0 1\n";
-  const std::string err = refused("--capture " + hall_.string() + " --pose " + poses.string() + " --profile os1-64");
+  const std::string err =
+      refused("--capture " + hall_.string() + " --pose " + poses.string() + " --profile " + os1_64());
   EXPECT_NE(err.find("outside the poses' span [49.999999, 51.000001] s"), std::string::npos) << err;
   EXPECT_NE(err.find("--time-offset"), std::string::npos) << err;
 }
@@ -553,12 +566,13 @@ TEST_F(Compare, PosesThatDoNotCoverTheCaptureAreRefused) {
 TEST_F(Compare, APoseFromWhichTheSceneIsOutOfSightIsRefused) {
   const fs::path poses = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_far_pose.tum");
   std::ofstream(poses) << "0 5000 5000 5000 0 0 0 1\n";
-  const std::string err = refused("--capture " + hall_.string() + " --pose " + poses.string() + " --profile os1-64");
+  const std::string err =
+      refused("--capture " + hall_.string() + " --pose " + poses.string() + " --profile " + os1_64());
   EXPECT_NE(err.find("no beam of the capture meets a surface of the scene"), std::string::npos) << err;
 }
 
 TEST_F(Compare, AProfileWithoutRangeNoiseCannotBeScoredAndSaysWhy) {
-  nlohmann::json profile = read_json(kSource + "/profiles/os1-64.json");
+  nlohmann::json profile = read_json(os1_64());
   profile["effects"] = {{{"name", "radiometry"}}, {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}}};
   const fs::path path = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_noiseless.json");
   std::ofstream(path) << profile.dump();
@@ -597,7 +611,8 @@ TEST(CompareIndependentCapture, ThePapersProfileFitsACaptureWrittenFromTheProtoc
   EXPECT_NEAR(s["z"]["std"].get<double>(), 1.0, 0.01);
 
   // The datasheet's 10 mm to 20 m is far tighter than 10 mm + 1.4 mm/m: spread fails, upwards.
-  const CliRun datasheet = lidartwin("compare" + inputs + " --profile os1-64 --out " + (dir / "datasheet").string());
+  const CliRun datasheet =
+      lidartwin("compare" + inputs + " --profile " + os1_64() + " --out " + (dir / "datasheet").string());
   ASSERT_EQ(datasheet.code, 0) << datasheet.err;
   const nlohmann::json misfit = read_json(dir / "datasheet" / "report.json");
   ASSERT_FALSE(misfit["failing"].empty());

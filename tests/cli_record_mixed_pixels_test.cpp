@@ -21,12 +21,13 @@ using lidartwin::Scan;
 using lidartwin::test::decode_capture;
 using lidartwin::test::edited_profile;
 using lidartwin::test::record_hall;
+using lidartwin::test::table_profile;
 
 namespace {
 
 const std::string kDual = "RNG19_RFL8_SIG16_NIR16_DUAL";
 
-// profiles/os1-64.json with mixed_pixels after radiometry.
+// profiles/os1-64.json (its table effects) with mixed_pixels after radiometry.
 fs::path profile_with_mixed_pixels() {
   return edited_profile("os1-64", "os1-64-mixed", [](nlohmann::json& effects) {
     const nlohmann::json mixed = {{"name", "mixed_pixels"}, {"second_fraction", 0.05}};
@@ -61,9 +62,9 @@ std::vector<double> partners(const Scan& ideal, int c, int r) {
 }
 
 TEST(RecordMixedPixels, SecondReturnsLieAtDepthEdgesAtTheOtherSurfacesRange) {
-  const auto ideal = decode_capture(record("os1-64", "ideal", 1, true));
+  const auto ideal = decode_capture(record(table_profile("os1-64").string(), "ideal", 1, true));
   const auto mixed = decode_capture(record(profile_with_mixed_pixels().string(), "mixed", 5, false));
-  const auto plain = decode_capture(record("os1-64", "plain", 2, false));
+  const auto plain = decode_capture(record(table_profile("os1-64").string(), "plain", 2, false));
   ASSERT_FALSE(ideal.frames.empty());
   ASSERT_EQ(mixed.frames.size(), 5u);
   const Scan& truth = ideal.frames.begin()->second;

@@ -1,6 +1,7 @@
 // Profiles: every shipped profile loads; real-metadata profiles carry the sample calibration
 // unchanged (read here independently of the loader); the noise tables match the paper's Table I;
 // bad files fail with messages that name the file, the JSON pointer and the allowed range.
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -161,12 +162,34 @@ TEST(Profile, RangeLimitsEffectAgreesWithTheProfile) {
     const SensorProfile profile = load_profile(name);
     std::vector<std::string> names;
     for (const json& effect : profile.effects) names.push_back(effect.at("name"));
-    ASSERT_EQ(names.size(), 4u) << name;
-    EXPECT_EQ(names[0], "radiometry");
-    EXPECT_EQ(names[2], "range_limits");
-    EXPECT_EQ(names[3], "range_quantization");
-    EXPECT_EQ(profile.effects[2].at("min_m"), profile.min_range_m) << name;
-    EXPECT_EQ(profile.effects[2].at("max_m"), profile.max_range_m) << name;
+    ASSERT_GE(names.size(), 4u) << name;
+    EXPECT_EQ(names.front(), "radiometry");
+    EXPECT_EQ(names.back(), "range_quantization");
+    const size_t limits = names.size() - 2;
+    EXPECT_EQ(names[limits], "range_limits");
+    EXPECT_EQ(profile.effects[limits].at("min_m"), profile.min_range_m) << name;
+    EXPECT_EQ(profile.effects[limits].at("max_m"), profile.max_range_m) << name;
+  }
+}
+
+// The datasheet profiles enable the effects with a sourced default (lidar-physics.md): incidence
+// with the datasheet's beam divergence (E4, [S1]); on OS1, detection from the signal, whose
+// default threshold is set from the OS1 range specification (E5, [S1]). The paper profiles stay
+// the paper's law; OS2 and the detection threshold of OS0 have no source.
+TEST(Profile, DatasheetProfilesEnableTheEffectsWithSourcedDefaults) {
+  for (const auto& name : available_profiles()) {
+    const SensorProfile profile = load_profile(name);
+    std::vector<std::string> names;
+    for (const json& effect : profile.effects) names.push_back(effect.at("name"));
+    const auto has = [&](const char* effect) { return std::find(names.begin(), names.end(), effect) != names.end(); };
+    const bool paper = name.ends_with("-paper"), os0 = name.starts_with("os0"), os1 = name.starts_with("os1");
+    EXPECT_EQ(has("incidence"), !paper && (os0 || os1)) << name;
+    EXPECT_EQ(has("dropout"), !paper && os1) << name;
+    for (const json& effect : profile.effects) {
+      if (effect.at("name") == "incidence") {
+        EXPECT_EQ(effect.at("divergence_rad"), profile.beam_divergence_rad) << name;
+      }
+    }
   }
 }
 

@@ -24,6 +24,7 @@
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/packet/scan_batcher.h"
 #include "lidartwin/pcap/pcap.h"
+#include "support/table_profile.h"
 
 namespace lidartwin::test {
 
@@ -39,12 +40,16 @@ inline int run_lidartwin(const std::string& arguments) {
 inline std::string hall_scene() { return std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb"; }
 inline constexpr const char* kHallPose = "0 0 4 0 0 0 1";
 
-// profiles/<shipped>.json with its effect chain changed by `edit(effects)`, written to the test's
-// temporary directory as <name>.json.
+using table_profiles::keep_table_effects;
+using table_profiles::table_profile;
+
+// profiles/<shipped>.json with its table effects only (keep_table_effects), its chain then changed
+// by `edit(effects)`, written to the test's temporary directory as <name>.json.
 template <class Edit>
 std::filesystem::path edited_profile(const std::string& shipped, const std::string& name, Edit edit) {
   std::ifstream in(std::string(LIDARTWIN_SOURCE_DIR) + "/profiles/" + shipped + ".json");
   nlohmann::json profile = nlohmann::json::parse(in);
+  keep_table_effects(profile.at("effects"));
   edit(profile.at("effects"));
   const auto path = std::filesystem::path(testing::TempDir()) / (name + ".json");
   std::ofstream(path) << profile.dump(2);
