@@ -6,7 +6,9 @@
 // standard deviations up (E14). Default S_th = 4 photons, w = 0.3: with the default radiometry,
 // the Gen1 OS1 range spec (40 m at 10 %, 120 m at 80 %, [S1]: S = 8.6 and 7.7 photons) then sits
 // at P_det = 0.93 and 0.90.
+#include <array>
 #include <cmath>
+#include <limits>
 
 #include "effects/builtin_effects.h"
 #include "effects/parameters.h"
@@ -30,10 +32,13 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
       {"ambient_coefficient", &P::ambient_coefficient, {0.0, 100.0}},
   }};
 
-  explicit Dropout(const P& p)
-      : TabledEffect(p),
-        sure_ratio_(std::exp(kSureX * static_cast<float>(p.width))),
-        sure_probability_(static_cast<double>(1.0f / (1.0f + std::exp(-kSureX)))) {}
+  explicit Dropout(const P& p) : TabledEffect(p) {
+    for (size_t k = 0; k <= kCells; ++k) {
+      const double edge = static_cast<double>(k) / kCells;
+      drop_below_[k] = signal_ratio_at(edge - kMargin, p.width);
+      detect_from_[k] = signal_ratio_at(edge + kMargin, p.width);
+    }
+  }
 
   std::vector<std::string_view> prerequisites() const override { return {"radiometry"}; }
 
@@ -55,10 +60,14 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
       if (measured.range_m[beam] == 0.0f) continue;
       const float signal = measured.signal_photons[beam], near_ir = measured.near_ir_photons[beam];
       const double u = streams(beam).uniform(0);
-      // Strong returns (x >= 6, P_det >= 0.9975) with u below that bound are detected whatever
-      // the exact P_det: skips log and exp for most pixels; outcomes change only by float rounding.
-      const bool surely = signal >= sure_ratio_ * threshold(near_ir) && u < sure_probability_;
-      if (surely || u < static_cast<double>(detection_probability(signal, near_ir))) continue;
+      // u lies in cell k = [k, k + 1) / kCells. Where P_det is above the cell (by the margin) the
+      // return is detected, where it is below, dropped, without the log and exp of P_det; only
+      // returns whose P_det falls in u's own cell (1 in kCells) compute it. The same outcomes as
+      // comparing u with P_det itself.
+      const auto cell = static_cast<size_t>(u * kCells);
+      const float th = threshold(near_ir);
+      if (signal >= th * detect_from_[cell + 1]) continue;
+      if (signal >= th * drop_below_[cell] && u < static_cast<double>(detection_probability(signal, near_ir))) continue;
       measured.range_m[beam] = 0.0f;
       measured.signal_photons[beam] = 0.0f;
       measured.reflectivity[beam] = 0.0f;
@@ -71,9 +80,16 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
   }
 
  private:
-  static constexpr float kSureX = 6.0f;
-  float sure_ratio_;         // S / S_th at x = kSureX
-  double sure_probability_;  // P_det at x = kSureX
+  static constexpr size_t kCells = 64;
+  static constexpr double kMargin = 1e-5;  // in probability: beyond float rounding of P_det
+  // S / S_th where P_det = probability: (P / (1 - P))^w; 0 and infinity at the ends.
+  static float signal_ratio_at(double probability, double width) {
+    if (probability <= 0.0) return 0.0f;
+    if (probability >= 1.0) return std::numeric_limits<float>::infinity();
+    return static_cast<float>(std::pow(probability / (1.0 - probability), width));
+  }
+  // [k]: S / S_th at P_det = k / kCells less (drop_below_) and plus (detect_from_) the margin.
+  std::array<float, kCells + 1> drop_below_{}, detect_from_{};
 };
 
 }  // namespace
