@@ -433,6 +433,24 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   }
 }
 
+// E8: beside the hall's retroreflective panels, in their columns, returns at the panel's range and
+// lost returns; the diagnosis names the halo and fits both rates.
+TEST_F(Compare, TheDiagnosisNamesAHiddenRetroreflectorHaloAndFitsIt) {
+  const nlohmann::json effect = {{"name", "halo"}, {"probability", 0.5}, {"dropout_probability", 0.2}};
+  const nlohmann::json report = compare_hidden_effect(effect, "e8", out("e8"));
+  const auto& diagnosis = report["diagnosis"];
+  ASSERT_GE(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);
+  EXPECT_EQ(diagnosis["selected"][0]["effect"], "halo") << diagnosis.dump(1);
+  EXPECT_EQ(diagnosis["selected"][0]["catalogue"], "E8");
+  const auto& params = diagnosis["selected"][0]["params"];
+  for (const auto& [name, truth] : {std::pair{"probability", 0.5}, std::pair{"dropout_probability", 0.2}}) {
+    const auto& ci = params[name]["ci95"];
+    std::printf("  %s: %.4f [%.4f, %.4f], truth %.2f\n", name, params[name]["value"].get<double>(), ci[0].get<double>(),
+                ci[1].get<double>(), truth);
+    EXPECT_NEAR(params[name]["value"].get<double>(), truth, 0.1 * truth) << name << " " << params[name].dump();
+  }
+}
+
 // The fitted values of a selected effect's parameters, checked against the truth within `tolerance`
 // (relative).
 void expect_fitted(const nlohmann::json& candidate, const std::vector<std::pair<std::string, double>>& truths,
@@ -518,7 +536,7 @@ TEST_F(Compare, TheDiagnosisFindsNothingMissingWhenNothingIs) {
   const nlohmann::json diagnosis = read_json(dir / "report.json")["diagnosis"];
   EXPECT_EQ(diagnosis["verdict"], "no missing effect") << diagnosis.dump(1);
   EXPECT_TRUE(diagnosis["selected"].empty());
-  EXPECT_EQ(diagnosis["ranked"].size(), 6u);  // E2, E3, E4, E5, E6, E12: the fittable effects os1-64 lacks
+  EXPECT_EQ(diagnosis["ranked"].size(), 7u);  // E2-E6, E8, E12: the fittable effects os1-64 lacks
   for (const auto& c : diagnosis["ranked"]) EXPECT_LT(c["delta_bic"].get<double>(), 0.0) << c.dump();
 }
 

@@ -40,6 +40,9 @@ const std::vector<CandidateSpec>& candidate_specs() {
       // The pulse length and the second return's threshold shape what a dual profile's RANGE2
       // shows, which the likelihood does not score yet: left at their defaults.
       {"mixed_pixels", {{"divergence_rad", 0.002, 0.001}}},
+      // The halo's reach (decay_rows) and its returns' spread and strength stay at their defaults:
+      // its rates beside the retroreflectors are what the likelihood sees most clearly.
+      {"halo", {{"probability", 0.1, 0.05}, {"dropout_probability", 0.0, 0.05}}},
   };
   return specs;
 }
