@@ -451,6 +451,41 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenRetroreflectorHaloAndFitsIt) {
   }
 }
 
+// Parameter misfit: the profile has the right effect with a wrong value (incidence with half the
+// beam divergence that made the capture). The diagnosis refits it in place, reports the old and
+// the new value, and finds nothing missing; --keep-profile leaves it alone.
+TEST_F(Compare, TheDiagnosisRefitsAProfilesOwnEffectWhoseParametersMisfit) {
+  const fs::path dir = out("refit");
+  const fs::path capture = dir / "capture";
+  ASSERT_EQ(lidartwin("record --profile " +
+                      profile_with({{"name", "incidence"}, {"divergence_rad", 0.004}}, "wide").string() + " --scene " +
+                      kHall + " --trajectory " + kHallPose + " --frames 20 --seed 5 --out " + capture.string())
+                .code,
+            0);
+  const std::string narrow = profile_with({{"name", "incidence"}, {"divergence_rad", 0.002}}, "narrow").string();
+  const std::string inputs = " --capture " + capture.string() + " --scene " + kHall + " --profile " + narrow;
+  const CliRun r = lidartwin("compare" + inputs + " --no-plots --diagnose --out " + (dir / "report").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json diagnosis = read_json(dir / "report" / "report.json")["diagnosis"];
+  ASSERT_EQ(diagnosis["parameter_misfit"].size(), 1u) << diagnosis.dump(1);
+  const auto& refit = diagnosis["parameter_misfit"][0];
+  EXPECT_EQ(refit["effect"], "incidence");
+  EXPECT_EQ(refit["catalogue"], "E4");
+  EXPECT_EQ(refit["old"]["divergence_rad"], 0.002);
+  const auto& divergence = refit["params"]["divergence_rad"];
+  std::printf("  divergence_rad refitted: %.5f [%.5f, %.5f] (truth 0.004, profile 0.002)\n",
+              divergence["value"].get<double>(), divergence["ci95"][0].get<double>(),
+              divergence["ci95"][1].get<double>());
+  EXPECT_NEAR(divergence["value"].get<double>(), 0.004, 0.0004) << divergence.dump();
+  EXPECT_EQ(diagnosis["verdict"], "no missing effect") << diagnosis.dump(1);
+  for (const auto& c : diagnosis["ranked"]) EXPECT_NE(c["effect"], "incidence");
+
+  const CliRun kept =
+      lidartwin("compare" + inputs + " --no-plots --diagnose --keep-profile --out " + (dir / "kept").string());
+  ASSERT_EQ(kept.code, 0) << kept.err;
+  EXPECT_TRUE(read_json(dir / "kept" / "report.json")["diagnosis"]["parameter_misfit"].empty());
+}
+
 // The fitted values of a selected effect's parameters, checked against the truth within `tolerance`
 // (relative).
 void expect_fitted(const nlohmann::json& candidate, const std::vector<std::pair<std::string, double>>& truths,

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <set>
 
 #include <fmt/format.h>
@@ -82,10 +83,28 @@ EffectChain with_candidate(const EffectChain& chain, const nlohmann::json& effec
   return EffectChain::from_json(document, "diagnosis candidate");
 }
 
-Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& base, double base_nll,
+// Where a fitted effect goes: a candidate joins the chain before its range limits; a profile's own
+// effect being refitted (`index`) keeps its place, its other parameters and its random streams.
+struct Placement {
+  const EffectChain& base;
+  std::optional<size_t> index;  // none: a candidate
+  EffectChain chain_with(const nlohmann::json& effect) const {
+    if (!index) return with_candidate(base, effect);
+    nlohmann::json document = base.to_json();
+    document[*index] = effect;
+    return EffectChain::from_json(document, "diagnosis refit");
+  }
+  // The effect as it starts: the candidate's defaults, or the profile's own.
+  nlohmann::json start(const CandidateSpec& spec) const {
+    return index ? base.effects()[*index]->to_json() : nlohmann::json{{"name", spec.effect}};
+  }
+};
+
+Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place, double base_nll,
               const CandidateSpec& spec) {
-  // Bounds from the effect's own parameter table.
-  const EffectChain probe = with_candidate(base, {{"name", spec.effect}});
+  // Bounds from the effect's own parameter table; a refit starts from the profile's values.
+  const nlohmann::json start = place.start(spec);
+  const EffectChain probe = place.chain_with(start);
   const auto effect = std::find_if(probe.effects().begin(), probe.effects().end(),
                                    [&](const auto& e) { return e->name() == spec.effect; });
   const std::vector<EffectParameter> all = (*effect)->parameters();
@@ -94,16 +113,16 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Effect
     const auto it = std::find_if(all.begin(), all.end(), [&](const EffectParameter& p) { return p.name == f.name; });
     lower.push_back(it->lower);
     upper.push_back(it->upper);
-    x.push_back(std::clamp(f.start, it->lower, it->upper));
+    x.push_back(std::clamp(place.index ? it->value : f.start, it->lower, it->upper));
     steps.push_back(f.step);
   }
   const auto effect_json = [&](const std::vector<double>& values) {
-    nlohmann::json e = {{"name", spec.effect}};
+    nlohmann::json e = start;
     for (size_t k = 0; k < values.size(); ++k) e[spec.free[k].name] = values[k];
     return e;
   };
   const auto objective = [&](const std::vector<double>& values) {
-    return total_nll(t, rows, with_candidate(base, effect_json(values)));
+    return total_nll(t, rows, place.chain_with(effect_json(values)));
   };
   nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(x.size()));
   opt.set_lower_bounds(lower);
@@ -193,10 +212,34 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
   }
   EffectChain current = chain;
   double current_nll = total_nll(table, rows, current);
+  // Parameter misfit first: the profile's own fittable effects refitted, each given the others as
+  // they stand, kept where the likelihood-ratio test and BIC say the profile's values misfit; the
+  // search for missing effects then starts from the refitted chain.
+  if (options.refit_profile && !misfit.failing.empty()) {
+    std::vector<std::pair<size_t, const CandidateSpec*>> own;
+    for (size_t i = 0; i < chain.effects().size(); ++i) {
+      for (const CandidateSpec& spec : candidate_specs()) {
+        if (chain.effects()[i]->name() == spec.effect) own.emplace_back(i, &spec);
+      }
+    }
+    const double alpha = options.alpha / static_cast<double>(std::max<size_t>(own.size(), 1));
+    for (const auto& [index, spec] : own) {
+      ParameterMisfit m;
+      m.refit = fit(table, rows, Placement{current, index}, current_nll, *spec);
+      if (m.refit.delta_bic < options.min_delta_bic || m.refit.p_value > alpha) continue;
+      const nlohmann::json before = current.effects()[index]->to_json();
+      for (const FreeParameter& f : spec->free) m.old_values.emplace_back(f.name, before.at(f.name).get<double>());
+      m.index = index;
+      current = Placement{current, index}.chain_with(m.refit.effect_json);
+      current_nll -= m.refit.delta_nll;
+      d.parameter_misfit.push_back(std::move(m));
+    }
+  }
+  d.refitted = current;
   const double corrected_alpha = options.alpha / static_cast<double>(std::max<size_t>(pool.size(), 1));
   for (int round = 0; round < options.max_effects && !pool.empty(); ++round) {
     std::vector<Candidate> fits;
-    for (const CandidateSpec* spec : pool) fits.push_back(fit(table, rows, current, current_nll, *spec));
+    for (const CandidateSpec* spec : pool) fits.push_back(fit(table, rows, Placement{current, {}}, current_nll, *spec));
     std::sort(fits.begin(), fits.end(),
               [](const Candidate& a, const Candidate& b) { return a.delta_bic > b.delta_bic; });
     if (round == 0) d.ranked = fits;
@@ -214,7 +257,7 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
   for (const FailingRegion& f : misfit.failing) failing.insert({f.quantity, describe(f.region)});
   for (Candidate& c : d.ranked) {
     if (c.delta_bic <= 0.0) continue;
-    const PixelTable with = repredicted(table, with_candidate(chain, c.effect_json));
+    const PixelTable with = repredicted(table, with_candidate(d.refitted, c.effect_json));
     MisfitOptions misfit_options;
     misfit_options.alpha = options.alpha;
     const Misfit after = find_misfit(with, score_pixels(with), misfit.summary.frames, misfit_options);
@@ -249,7 +292,7 @@ std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& c
     for (const auto& e : current.effects()) {
       if (e->name() == name) throw InputError(fmt::format("--add {}: the profile's chain already has it", name));
     }
-    fits.push_back(fit(table, rows, current, current_nll, *spec));
+    fits.push_back(fit(table, rows, Placement{current, {}}, current_nll, *spec));
     current = with_candidate(current, fits.back().effect_json);
     current_nll -= fits.back().delta_nll;
   }
@@ -273,12 +316,22 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
   nlohmann::json ranked = nlohmann::json::array(), selected = nlohmann::json::array();
   for (const Candidate& c : d.ranked) ranked.push_back(candidate_json(c));
   for (const Candidate& c : d.selected) selected.push_back(candidate_json(c));
+  nlohmann::json refits = nlohmann::json::array();
+  for (const ParameterMisfit& m : d.parameter_misfit) {
+    nlohmann::json entry = candidate_json(m.refit);
+    entry.erase("repairs");
+    nlohmann::json old_values = nlohmann::json::object();
+    for (const auto& [name, value] : m.old_values) old_values[name] = value;
+    entry["old"] = old_values;
+    entry["index"] = m.index;
+    refits.push_back(entry);
+  }
   return {{"verdict", d.verdict},
           {"ranked", ranked},
           {"selected", selected},
           {"pixels", d.pixels},
           {"unexplained", nlohmann::json::array()},
-          {"parameter_misfit", nlohmann::json::array()}};
+          {"parameter_misfit", refits}};
 }
 
 }  // namespace lidartwin

@@ -34,6 +34,7 @@ struct CompareFlags {
   size_t show = 10;
   bool plots = true;
   bool diagnose = false;
+  bool keep_profile = false;
 };
 
 void write_json(const fs::path& path, const nlohmann::json& json) {
@@ -91,6 +92,7 @@ int run_compare(const CompareFlags& flags) {
     steps.start("diagnosing: fitting each library effect the profile lacks");
     DiagnoseOptions diagnose_options;
     diagnose_options.alpha = flags.alpha;
+    diagnose_options.refit_profile = !flags.keep_profile;
     diagnosis = lidartwin::diagnose(table, chain, misfit, diagnose_options);
     report["diagnosis"] = diagnosis_json(*diagnosis);
     steps.done();
@@ -173,6 +175,9 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   sub->add_flag("--diagnose", flags->diagnose,
                 "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing")
       ->excludes("--static");
+  sub->add_flag("--keep-profile", flags->keep_profile,
+                "with --diagnose: do not refit the profile's own effects' parameters (parameter misfit) first")
+      ->needs("--diagnose");
   sub->callback([&run, flags] { run = [flags] { return run_compare(*flags); }; });
 }
 

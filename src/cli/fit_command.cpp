@@ -57,23 +57,28 @@ int run_fit(const FitFlags& flags) {
   const Measured measured = measure(flags.measured, profile, chain, steps);
   DiagnoseOptions options;
   options.alpha = flags.alpha;
-  std::vector<Candidate> fits;
+  std::vector<Candidate> fits, noted;
+  EffectChain base = chain;
   steps.start("fitting");
   if (flags.automatic) {
     MisfitOptions misfit_options;
     misfit_options.alpha = flags.alpha;
     const Misfit misfit =
         find_misfit(measured.table, score_pixels(measured.table), measured.capture.frames.size(), misfit_options);
-    fits = diagnose(measured.table, chain, misfit, options).selected;
+    const Diagnosis diagnosis = diagnose(measured.table, chain, misfit, options);
+    fits = diagnosis.selected;
+    base = diagnosis.refitted;  // the profile's own effects whose parameters misfit, refitted
+    for (const ParameterMisfit& m : diagnosis.parameter_misfit) noted.push_back(m.refit);
   } else {
     fits = fit_effects(measured.table, chain, flags.add, options);
   }
   steps.done();
+  noted.insert(noted.end(), fits.begin(), fits.end());
   // The profile file as it is, with the fitted chain and the notes.
   std::ifstream in(profile_file(flags.profile));
   nlohmann::json document = nlohmann::json::parse(in);
-  document["effects"] = chain_with(chain, fits).to_json();
-  document["fit"] = fit_notes(fits, measured, measured.table.size());
+  document["effects"] = chain_with(base, fits).to_json();
+  document["fit"] = fit_notes(noted, measured, measured.table.size());
   if (fs::path(flags.out).has_parent_path()) fs::create_directories(fs::path(flags.out).parent_path());
   std::ofstream out(flags.out);
   out << document.dump(2) << "\n";

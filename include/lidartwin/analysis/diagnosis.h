@@ -5,6 +5,7 @@
 // failing regions each one repairs. Forward stepwise: the best is kept and the others refitted
 // given it while the improvement stays significant, so two hidden effects are both found.
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lidartwin/analysis/misfit.h"
@@ -30,11 +31,21 @@ struct Candidate {
   nlohmann::json effect_json;        // the fitted effect, as a profile lists it
 };
 
+// An effect the profile has whose parameters misfit: refitted in place (the same free parameters
+// a candidate fits), with the profile's values it replaced.
+struct ParameterMisfit {
+  Candidate refit;  // effect_json: the whole effect with the refitted values
+  std::vector<std::pair<std::string, double>> old_values;
+  size_t index = 0;  // its place in the profile's chain
+};
+
 struct Diagnosis {
-  std::string verdict;              // "no missing effect" or "missing effect"
-  std::vector<Candidate> ranked;    // first round, best first
-  std::vector<Candidate> selected;  // kept, in the order added
-  size_t pixels = 0;                // pixels the fits used
+  std::string verdict;                            // "no missing effect" or "missing effect"
+  std::vector<ParameterMisfit> parameter_misfit;  // the profile's own effects refitted, in chain order
+  std::vector<Candidate> ranked;                  // first round, best first
+  std::vector<Candidate> selected;                // kept, in the order added
+  size_t pixels = 0;                              // pixels the fits used
+  EffectChain refitted;                           // the profile's chain with the refits (selected not added)
 };
 
 struct DiagnoseOptions {
@@ -42,6 +53,9 @@ struct DiagnoseOptions {
   double min_delta_bic = 10.0;  // "very strong" evidence on the Kass-Raftery scale
   size_t max_pixels = 200'000;  // evenly subsampled from the table for the fits
   int max_effects = 3;
+  // Refit the profile's own fittable effects first, where the profile fails somewhere (a profile
+  // that fits everywhere keeps its values): compare --keep-profile turns it off.
+  bool refit_profile = true;
 };
 
 // chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).
