@@ -50,6 +50,7 @@ const json kLinear = {
 const json kLimits = {{"name", "range_limits"}, {"min_m", 0.3}, {"max_m", 100.0}};
 const json kQuantization = {{"name", "range_quantization"}};
 const json kDropout = {{"name", "dropout"}};
+const json kIncidence = {{"name", "incidence"}, {"divergence_rad", 0.00314}};
 
 void run_chain(benchmark::State& state, const json& effects) {
   const EffectChain chain = EffectChain::from_json(effects, "bench");
@@ -67,12 +68,14 @@ void run_chain(benchmark::State& state, const json& effects) {
   report_ns_per_pixel(state);
 }
 
-// The profiles' chain (profiles/os1-64.json): radiometry, Table I noise, limits, quantization.
-void BM_ProfileChain(benchmark::State& state) {
+// Table I's chain alone: radiometry, the datasheet's sigma(r), limits, quantization.
+void BM_TableChain(benchmark::State& state) {
   run_chain(state, json::array({kRadiometry, kPiecewise, kLimits, kQuantization}));
 }
-void BM_ProfileChainWithDropout(benchmark::State& state) {
-  run_chain(state, json::array({kRadiometry, kPiecewise, kDropout, kLimits, kQuantization}));
+// The OS1 datasheet profiles' chain (profiles/os1-128.json): Table I's plus incidence (E4) and
+// detection from the signal (E5).
+void BM_DatasheetChain(benchmark::State& state) {
+  run_chain(state, json::array({kRadiometry, kPiecewise, kIncidence, kDropout, kLimits, kQuantization}));
 }
 void BM_PaperChain(benchmark::State& state) {
   run_chain(state, json::array({kRadiometry, kLinear, kLimits, kQuantization}));
@@ -81,6 +84,7 @@ void BM_Radiometry(benchmark::State& state) { run_chain(state, json::array({kRad
 void BM_RangeNoisePiecewise(benchmark::State& state) { run_chain(state, json::array({kPiecewise})); }
 void BM_RangeNoiseLinear(benchmark::State& state) { run_chain(state, json::array({kLinear})); }
 void BM_Dropout(benchmark::State& state) { run_chain(state, json::array({kRadiometry, kDropout})); }
+void BM_Incidence(benchmark::State& state) { run_chain(state, json::array({kIncidence})); }
 void BM_LimitsAndQuantization(benchmark::State& state) { run_chain(state, json::array({kLimits, kQuantization})); }
 void BM_Empty(benchmark::State& state) { run_chain(state, json::array()); }
 
@@ -101,13 +105,14 @@ void BM_NormalDraw(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK(BM_ProfileChain);
-BENCHMARK(BM_ProfileChainWithDropout);
+BENCHMARK(BM_TableChain);
+BENCHMARK(BM_DatasheetChain);
 BENCHMARK(BM_PaperChain);
 BENCHMARK(BM_Radiometry);
 BENCHMARK(BM_RangeNoisePiecewise);
 BENCHMARK(BM_RangeNoiseLinear);
 BENCHMARK(BM_Dropout);
+BENCHMARK(BM_Incidence);
 BENCHMARK(BM_LimitsAndQuantization);
 BENCHMARK(BM_Empty);
 BENCHMARK(BM_NormalDraw<true>)->Name("BM_NormalZiggurat");
