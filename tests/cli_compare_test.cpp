@@ -486,6 +486,42 @@ TEST_F(Compare, TheDiagnosisRefitsAProfilesOwnEffectWhoseParametersMisfit) {
   EXPECT_TRUE(read_json(dir / "kept" / "report.json")["diagnosis"]["parameter_misfit"].empty());
 }
 
+// The range noise's sigma(r) only where the user allows it (--refit-noise): a profile whose
+// datasheet sigmas are half again too large is refitted, knot by knot, to those that made the
+// capture where the hall has ranges; without the flag the profile's noise is left alone.
+TEST_F(Compare, RefitNoiseRefitsTheDatasheetSigmasWhereTheCaptureHasRanges) {
+  nlohmann::json profile = read_json(os1_64());
+  for (auto& effect : profile["effects"]) {
+    if (effect["name"] != "range_noise_piecewise") continue;
+    for (auto& knot : effect["points_m"]) knot[1] = 1.5 * knot[1].get<double>();
+  }
+  const fs::path wide = fs::path(testing::TempDir()) / (std::to_string(getpid()) + "_wide_noise.json");
+  std::ofstream(wide) << profile.dump();
+  const fs::path dir = out("refit_noise");
+  const std::string inputs = " --capture " + hall_.string() + " --scene " + kHall + " --profile " + wide.string();
+  const CliRun r =
+      lidartwin("compare" + inputs + " --no-plots --diagnose --refit-noise --out " + (dir / "on").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json diagnosis = read_json(dir / "on" / "report.json")["diagnosis"];
+  ASSERT_EQ(diagnosis["parameter_misfit"].size(), 1u) << diagnosis.dump(1);
+  const auto& refit = diagnosis["parameter_misfit"][0];
+  EXPECT_EQ(refit["effect"], "range_noise_piecewise");
+  EXPECT_EQ(refit["catalogue"], "E1");
+  // Knots 2 and 3 (1.02 m and 19.6 m, 10 mm) span the hall's walls, floor and near boards.
+  for (const char* knot : {"points_m/2/1", "points_m/3/1"}) {
+    const auto& p = refit["params"][knot];
+    std::printf("  %s: profile %.4f, refitted %.5f [%.5f, %.5f] (truth 0.01)\n", knot, refit["old"][knot].get<double>(),
+                p["value"].get<double>(), p["ci95"][0].get<double>(), p["ci95"][1].get<double>());
+    EXPECT_NEAR(refit["old"][knot].get<double>(), 0.015, 1e-12);
+    EXPECT_NEAR(p["value"].get<double>(), 0.01, 0.0005) << p.dump();
+  }
+  EXPECT_EQ(diagnosis["verdict"], "no missing effect") << diagnosis.dump(1);
+
+  const CliRun off = lidartwin("compare" + inputs + " --no-plots --diagnose --out " + (dir / "off").string());
+  ASSERT_EQ(off.code, 0) << off.err;
+  EXPECT_TRUE(read_json(dir / "off" / "report.json")["diagnosis"]["parameter_misfit"].empty());
+}
+
 // The fitted values of a selected effect's parameters, checked against the truth within `tolerance`
 // (relative).
 void expect_fitted(const nlohmann::json& candidate, const std::vector<std::pair<std::string, double>>& truths,

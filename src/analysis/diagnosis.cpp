@@ -23,13 +23,14 @@ namespace {
 // scale of a first step (NLopt's BOBYQA works in these units). Effects whose parameters are not a
 // handful of numbers (beam_calibration's per-beam values come from a unit seed) are not here yet.
 struct FreeParameter {
-  const char* name;
+  std::string name;
   double start;
   double step;
 };
 struct CandidateSpec {
-  const char* effect;
+  std::string effect;
   std::vector<FreeParameter> free;
+  nlohmann::json start = nullptr;  // the effect as it starts (fixed parameters included); null: defaults
 };
 const std::vector<CandidateSpec>& candidate_specs() {
   static const std::vector<CandidateSpec> specs{
@@ -48,6 +49,28 @@ const std::vector<CandidateSpec>& candidate_specs() {
   return specs;
 }
 
+// A parameter's place in its effect's JSON: a key, or a path below it ("points_m/2/1").
+nlohmann::json::json_pointer pointer(const std::string& name) { return nlohmann::json::json_pointer("/" + name); }
+
+// What a profile's own effect refits in place (parameter misfit): a candidate's free parameters,
+// or, where the user allows it, the range noise's sigmas (E1): the linear law's two, the datasheet
+// table's knot sigmas (its knot ranges are structure), in steps of a fifth of each value. Not by
+// default: sigma(r) can take up part of any missing spread effect (E2, E4) along range, which
+// would then be reported as a misfit of the profile's own noise.
+std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise) {
+  const std::string name(effect.name());
+  for (const CandidateSpec& spec : candidate_specs()) {
+    if (spec.effect == name) return spec;
+  }
+  if (!range_noise || (name != "range_noise_linear" && name != "range_noise_piecewise")) return std::nullopt;
+  CandidateSpec spec{name, {}, nullptr};
+  for (const EffectParameter& p : effect.parameters()) {
+    if (p.fixed || p.name == "range_max_m") continue;  // the linear law's r_max only rescales its slope
+    spec.free.push_back({p.name, p.value, std::max(0.2 * std::abs(p.value), 1e-4)});
+  }
+  return spec;
+}
+
 // The fitted pixels: an even subsample of those that meet a surface.
 std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels) {
   size_t hits = 0;
@@ -62,10 +85,13 @@ std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels) {
 }
 
 // Total NLL of the rows under a chain (the same likelihood compare scores with).
-double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain) {
+// adjust: a misfit pattern's per-bin values applied on top of the chain's predictions.
+double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
+                 const PatternAdjustment* adjust = nullptr) {
   double nll = 0.0;
   for (const size_t i : rows) {
-    const Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
+    Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
+    if (adjust) adjust->apply(i, p);
     const RangeModel model = range_model(p, t.ideal_range_m[i], t.step_m[i], t.window_max_m[i]);
     nll += score_pixel(model, t.range_m[i], 0.5).nll;
   }
@@ -96,12 +122,13 @@ struct Placement {
   }
   // The effect as it starts: the candidate's defaults, or the profile's own.
   nlohmann::json start(const CandidateSpec& spec) const {
-    return index ? base.effects()[*index]->to_json() : nlohmann::json{{"name", spec.effect}};
+    if (index) return base.effects()[*index]->to_json();
+    return spec.start.is_null() ? nlohmann::json{{"name", spec.effect}} : spec.start;
   }
 };
 
 Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place, double base_nll,
-              const CandidateSpec& spec) {
+              const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr) {
   // Bounds from the effect's own parameter table; a refit starts from the profile's values.
   const nlohmann::json start = place.start(spec);
   const EffectChain probe = place.chain_with(start);
@@ -118,11 +145,11 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
   }
   const auto effect_json = [&](const std::vector<double>& values) {
     nlohmann::json e = start;
-    for (size_t k = 0; k < values.size(); ++k) e[spec.free[k].name] = values[k];
+    for (size_t k = 0; k < values.size(); ++k) e[pointer(spec.free[k].name)] = values[k];
     return e;
   };
   const auto objective = [&](const std::vector<double>& values) {
-    return total_nll(t, rows, place.chain_with(effect_json(values)));
+    return total_nll(t, rows, place.chain_with(effect_json(values)), adjust);
   };
   nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(x.size()));
   opt.set_lower_bounds(lower);
@@ -130,7 +157,7 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
   opt.set_initial_step(steps);
   opt.set_xtol_rel(1e-4);
   opt.set_ftol_abs(1e-3);
-  opt.set_maxeval(150);
+  opt.set_maxeval(std::max(150, 60 * static_cast<int>(x.size())));  // BOBYQA needs more with more parameters (knots)
   struct Data {
     const decltype(objective)* f;
   } data{&objective};
@@ -197,6 +224,19 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
   return c;
 }
 
+// An effect the search does not list (one a user registered): every parameter that is not fixed is
+// fitted, from the value `effect` gives it (or its default), in steps of a tenth of its bounds.
+CandidateSpec spec_of(const nlohmann::json& effect) {
+  const EffectChain probe = EffectChain::from_json(nlohmann::json::array({effect}), "--add");
+  CandidateSpec spec{effect.at("name").get<std::string>(), {}, effect};
+  for (const EffectParameter& p : probe.effects().front()->parameters()) {
+    if (p.fixed || p.name.find('/') != std::string::npos) continue;  // structural, or inside a table
+    spec.free.push_back({p.name, p.value, std::max(0.1 * (p.upper - p.lower), 1e-9)});
+  }
+  if (spec.free.empty()) throw InputError(fmt::format("--add {}: it has no parameter to fit", spec.effect));
+  return spec;
+}
+
 }  // namespace
 
 Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
@@ -216,19 +256,19 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
   // they stand, kept where the likelihood-ratio test and BIC say the profile's values misfit; the
   // search for missing effects then starts from the refitted chain.
   if (options.refit_profile && !misfit.failing.empty()) {
-    std::vector<std::pair<size_t, const CandidateSpec*>> own;
+    std::vector<std::pair<size_t, CandidateSpec>> own;
     for (size_t i = 0; i < chain.effects().size(); ++i) {
-      for (const CandidateSpec& spec : candidate_specs()) {
-        if (chain.effects()[i]->name() == spec.effect) own.emplace_back(i, &spec);
-      }
+      if (std::optional<CandidateSpec> spec = refit_spec(*chain.effects()[i], options.refit_range_noise))
+        own.emplace_back(i, std::move(*spec));
     }
     const double alpha = options.alpha / static_cast<double>(std::max<size_t>(own.size(), 1));
     for (const auto& [index, spec] : own) {
       ParameterMisfit m;
-      m.refit = fit(table, rows, Placement{current, index}, current_nll, *spec);
+      m.refit = fit(table, rows, Placement{current, index}, current_nll, spec);
       if (m.refit.delta_bic < options.min_delta_bic || m.refit.p_value > alpha) continue;
       const nlohmann::json before = current.effects()[index]->to_json();
-      for (const FreeParameter& f : spec->free) m.old_values.emplace_back(f.name, before.at(f.name).get<double>());
+      for (const FreeParameter& f : spec.free)
+        m.old_values.emplace_back(f.name, before.at(pointer(f.name)).get<double>());
       m.index = index;
       current = Placement{current, index}.chain_with(m.refit.effect_json);
       current_nll -= m.refit.delta_nll;
@@ -245,12 +285,63 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
     if (round == 0) d.ranked = fits;
     const Candidate& best = fits.front();
     if (best.delta_bic < options.min_delta_bic || best.p_value > corrected_alpha) break;
+    // Weighed against the strongest per-bin pattern of the misfit (unexplained.h), each given the
+    // other: a free value per bin of one feature (a bias per material, a detection rate per beam)
+    // is added to the chain and the candidate refitted given it, and the pattern refitted given the
+    // candidate. A candidate that gains nothing given the pattern while the pattern still gains
+    // given the candidate was only absorbing part of an effect it is not (a signal-driven dropout
+    // taking up some of a few weak beams' losses, a common drift one material's bias). Where each
+    // explains the other (a range walk and a bias per signal bin), the physical effect is kept.
+    const PixelTable now = repredicted(table, current);
+    const PixelScores now_scores = score_pixels(now);
+    const FeaturePattern pattern = strongest_pattern(now, now_scores);
+    if (!pattern.quantity.empty()) {
+      const PatternAdjustment adjust = pattern_adjustment(now, now_scores, pattern);
+      const double with_pattern = total_nll(table, rows, current, &adjust);
+      const double pattern_bic =
+          2.0 * (current_nll - with_pattern) - pattern.dof * std::log(static_cast<double>(rows.size()));
+      const auto spec =
+          std::find_if(pool.begin(), pool.end(), [&](const CandidateSpec* s) { return s->effect == best.effect; });
+      const Candidate given = fit(table, rows, Placement{current, {}}, with_pattern, **spec, &adjust);
+      double pattern_given = 0.0;  // the pattern's delta BIC given the candidate
+      if (given.delta_bic < options.min_delta_bic) {
+        const EffectChain with = with_candidate(current, best.effect_json);
+        const PixelTable then = repredicted(table, with);
+        const PatternAdjustment after = pattern_adjustment(then, score_pixels(then), pattern);
+        pattern_given = 2.0 * (current_nll - best.delta_nll - total_nll(table, rows, with, &after)) -
+                        pattern.dof * std::log(static_cast<double>(rows.size()));
+      }
+      if (given.delta_bic < options.min_delta_bic && pattern_given >= options.min_delta_bic) {
+        const std::string what = pattern.quantity == "detection"  ? "detection rate"
+                                 : pattern.quantity == "outliers" ? "outlier rate"
+                                                                  : pattern.quantity;
+        d.not_selected.push_back(
+            {best.effect, best.delta_bic, pattern.quantity, pattern.feature, pattern_bic, given.delta_bic,
+             pattern_given,
+             fmt::format("{} (delta BIC {:.0f}) is not kept: given a free {} per {} bin (delta BIC {:.0f}) it "
+                         "gains {:.0f}, while the bins still gain {:.0f} given it; no library effect has the "
+                         "misfit's shape",
+                         best.effect, best.delta_bic, what, pattern.feature, pattern_bic, given.delta_bic,
+                         pattern_given)});
+        break;
+      }
+    }
     d.selected.push_back(best);
     current = with_candidate(current, best.effect_json);
     current_nll -= best.delta_nll;
     std::erase_if(pool, [&](const CandidateSpec* s) { return best.effect == s->effect; });
   }
-  d.verdict = d.selected.empty() ? "no missing effect" : "missing effect";
+  // What the profile with the refits and the selected effects still gets wrong, and what it follows.
+  {
+    MisfitOptions misfit_options;
+    misfit_options.alpha = options.alpha;
+    const PixelTable final_table = repredicted(table, current);
+    const PixelScores final_scores = score_pixels(final_table);
+    const Misfit remaining = find_misfit(final_table, final_scores, misfit.summary.frames, misfit_options);
+    d.unexplained = explain_misfit(final_table, final_scores, remaining, options.alpha);
+  }
+  // A misfit no library effect explains is a missing effect too.
+  d.verdict = d.selected.empty() && d.unexplained.empty() ? "no missing effect" : "missing effect";
   // What each first-round candidate that helps repairs: the failing regions of the profile's chain
   // that no longer fail once the fitted candidate joins it (the whole table rescored).
   std::set<std::pair<std::string, std::string>> failing;
@@ -278,21 +369,38 @@ std::vector<std::string> fittable_effects() {
 
 std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
                                    const std::vector<std::string>& effects, const DiagnoseOptions& options) {
+  std::vector<nlohmann::json> documents;
+  for (const std::string& name : effects) {
+    const auto listed = std::find_if(candidate_specs().begin(), candidate_specs().end(),
+                                     [&](const CandidateSpec& s) { return name == s.effect; });
+    const std::optional<std::string> catalogue = effect_catalogue(name);
+    if (listed == candidate_specs().end() && (!catalogue || !catalogue->empty())) {
+      // Unknown, or a library effect the search does not list (its parameters are not a handful of numbers).
+      throw InputError(
+          fmt::format("--add {}: not an effect the fit can estimate; fittable: {}, and effects "
+                      "registered without a catalogue id",
+                      name, fmt::join(fittable_effects(), ", ")));
+    }
+    documents.push_back({{"name", name}});
+  }
+  return fit_effects(table, chain, documents, options);
+}
+
+std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
+                                   const std::vector<nlohmann::json>& effects, const DiagnoseOptions& options) {
   const std::vector<size_t> rows = subsample(table, options.max_pixels);
   EffectChain current = chain;
   double current_nll = total_nll(table, rows, current);
   std::vector<Candidate> fits;
-  for (const std::string& name : effects) {
-    const auto spec = std::find_if(candidate_specs().begin(), candidate_specs().end(),
-                                   [&](const CandidateSpec& s) { return name == s.effect; });
-    if (spec == candidate_specs().end()) {
-      throw InputError(fmt::format("--add {}: not an effect the fit can estimate; fittable: {}", name,
-                                   fmt::join(fittable_effects(), ", ")));
-    }
+  for (const nlohmann::json& effect : effects) {
+    const std::string name = effect.value("name", "");
     for (const auto& e : current.effects()) {
       if (e->name() == name) throw InputError(fmt::format("--add {}: the profile's chain already has it", name));
     }
-    fits.push_back(fit(table, rows, Placement{current, {}}, current_nll, *spec));
+    const auto listed = std::find_if(candidate_specs().begin(), candidate_specs().end(),
+                                     [&](const CandidateSpec& s) { return name == s.effect; });
+    const CandidateSpec spec = listed != candidate_specs().end() && effect.size() == 1 ? *listed : spec_of(effect);
+    fits.push_back(fit(table, rows, Placement{current, {}}, current_nll, spec));
     current = with_candidate(current, fits.back().effect_json);
     current_nll -= fits.back().delta_nll;
   }
@@ -326,12 +434,33 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
     entry["index"] = m.index;
     refits.push_back(entry);
   }
-  return {{"verdict", d.verdict},
-          {"ranked", ranked},
-          {"selected", selected},
-          {"pixels", d.pixels},
-          {"unexplained", nlohmann::json::array()},
-          {"parameter_misfit", refits}};
+  nlohmann::json unexplained = nlohmann::json::array();
+  for (const UnexplainedMisfit& u : d.unexplained) {
+    nlohmann::json tests = nlohmann::json::array();
+    for (const FeatureTest& t : u.tests) {
+      tests.push_back({{"feature", t.feature}, {"chi2", t.chi2}, {"dof", t.dof}, {"p_value", t.p_value}});
+    }
+    unexplained.push_back({{"quantity", u.quantity},
+                           {"features", u.features},
+                           {"not_features", u.not_features},
+                           {"size", u.size},
+                           {"unit", u.unit},
+                           {"regions", u.regions},
+                           {"sentence", u.sentence},
+                           {"tests", tests}});
+  }
+  nlohmann::json not_selected = nlohmann::json::array();
+  for (const NotSelected& n : d.not_selected) {
+    not_selected.push_back(
+        {{"effect", n.effect},
+         {"delta_bic", n.delta_bic},
+         {"pattern", {{"quantity", n.quantity}, {"feature", n.feature}, {"delta_bic", n.pattern_delta_bic}}},
+         {"delta_bic_given_pattern", n.delta_bic_given_pattern},
+         {"pattern_delta_bic_given_effect", n.pattern_delta_bic_given_effect},
+         {"sentence", n.sentence}});
+  }
+  return {{"verdict", d.verdict}, {"not_selected", not_selected}, {"ranked", ranked},          {"selected", selected},
+          {"pixels", d.pixels},   {"unexplained", unexplained},   {"parameter_misfit", refits}};
 }
 
 }  // namespace lidartwin

@@ -35,6 +35,7 @@ struct CompareFlags {
   bool plots = true;
   bool diagnose = false;
   bool keep_profile = false;
+  bool refit_noise = false;
 };
 
 void write_json(const fs::path& path, const nlohmann::json& json) {
@@ -93,6 +94,7 @@ int run_compare(const CompareFlags& flags) {
     DiagnoseOptions diagnose_options;
     diagnose_options.alpha = flags.alpha;
     diagnose_options.refit_profile = !flags.keep_profile;
+    diagnose_options.refit_range_noise = flags.refit_noise;
     diagnosis = lidartwin::diagnose(table, chain, misfit, diagnose_options);
     report["diagnosis"] = diagnosis_json(*diagnosis);
     steps.done();
@@ -178,6 +180,10 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   sub->add_flag("--keep-profile", flags->keep_profile,
                 "with --diagnose: do not refit the profile's own effects' parameters (parameter misfit) first")
       ->needs("--diagnose");
+  sub->add_flag("--refit-noise", flags->refit_noise,
+                "with --diagnose: refit the profile's range noise sigma(r) (its knots' sigmas) among its own effects")
+      ->needs("--diagnose")
+      ->excludes("--keep-profile");
   sub->callback([&run, flags] { run = [flags] { return run_compare(*flags); }; });
 }
 

@@ -10,6 +10,7 @@
 
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/analysis/unexplained.h"
 #include "lidartwin/effects/effect_chain.h"
 
 namespace lidartwin {
@@ -39,13 +40,29 @@ struct ParameterMisfit {
   size_t index = 0;  // its place in the profile's chain
 };
 
+// The round's best candidate, passed over because it gains nothing once the misfit's strongest
+// per-bin pattern along one feature is allowed for (strongest_pattern, pattern_adjustment) while
+// the pattern still gains given it: the misfit is left to `unexplained`.
+struct NotSelected {
+  std::string effect;
+  double delta_bic = 0.0;
+  std::string quantity, feature;  // the pattern
+  double pattern_delta_bic = 0.0;
+  double delta_bic_given_pattern = 0.0;
+  double pattern_delta_bic_given_effect = 0.0;
+  std::string sentence;
+};
+
 struct Diagnosis {
   std::string verdict;                            // "no missing effect" or "missing effect"
   std::vector<ParameterMisfit> parameter_misfit;  // the profile's own effects refitted, in chain order
   std::vector<Candidate> ranked;                  // first round, best first
   std::vector<Candidate> selected;                // kept, in the order added
-  size_t pixels = 0;                              // pixels the fits used
-  EffectChain refitted;                           // the profile's chain with the refits (selected not added)
+  std::vector<NotSelected> not_selected;
+  // What still fails with the selected effects added, and the features it follows.
+  std::vector<UnexplainedMisfit> unexplained;
+  size_t pixels = 0;     // pixels the fits used
+  EffectChain refitted;  // the profile's chain with the refits (selected not added)
 };
 
 struct DiagnoseOptions {
@@ -56,6 +73,9 @@ struct DiagnoseOptions {
   // Refit the profile's own fittable effects first, where the profile fails somewhere (a profile
   // that fits everywhere keeps its values): compare --keep-profile turns it off.
   bool refit_profile = true;
+  // With refit_profile: the range noise's sigmas too (compare --refit-noise). Off by default, as
+  // sigma(r) can take up part of a missing spread effect along range.
+  bool refit_range_noise = false;
 };
 
 // chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).
@@ -67,9 +87,15 @@ nlohmann::json diagnosis_json(const Diagnosis& diagnosis);
 // The effects the diagnosis can fit (registry names).
 std::vector<std::string> fittable_effects();
 // Fits `effects` one after the other, each given the chain with those before it; throws InputError
-// naming an effect that is not fittable or already in the chain.
+// naming an effect that is not fittable or already in the chain. Fittable: the effects the search
+// lists (fittable_effects()), and effects a user registered (register_effect without a catalogue
+// id), whose parameters that are not fixed are all fitted.
 std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
                                    const std::vector<std::string>& effects, const DiagnoseOptions& options = {});
+// The same with each effect as a profile lists it: its fixed parameters (which material, which
+// beams) and the free ones' starting values.
+std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
+                                   const std::vector<nlohmann::json>& effects, const DiagnoseOptions& options = {});
 // The chain with the fitted effects inserted (before its range limits), in order.
 EffectChain chain_with(const EffectChain& chain, const std::vector<Candidate>& added);
 

@@ -1,0 +1,106 @@
+// The features the misfit is binned over, and the per-pixel model (misfit_features.h).
+#include "analysis/misfit_features.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+namespace lidartwin::analysis_detail {
+
+RangeModel model_of(const PixelTable& t, size_t i) {
+  RangeModel m;
+  m.mean_m = (f64(t.ideal_range_m[i])) + f64(t.predicted_bias_m[i]);
+  m.sigma_m = f64(t.predicted_sigma_m[i]);
+  m.p_detect = f64(t.p_detect[i]);
+  m.outlier_mix = f64(t.outlier_mix[i]);
+  m.partner_mix = f64(t.partner_mix[i]);
+  m.partner_offset_m = f64(t.partner_offset_m[i]);
+  m.window_min_m = f64(t.window_min_m[i]);
+  m.window_max_m = f64(t.window_max_m[i]);
+  m.step_m = f64(t.step_m[i]);
+  return m;
+}
+
+double expected_outlier_share(const PixelTable& t, size_t i) {
+  // Returns from an edge partner (E6) a depth step away fall outside the pixel's own Gaussian too.
+  const double partner = std::abs(f64(t.partner_offset_m[i])) > kOutlierZ * f64(t.predicted_sigma_m[i])
+                             ? partner_share(model_of(t, i))
+                             : 0.0;
+  const double pi = std::min(f64(t.outlier_mix[i]) + partner, 1.0);
+  return pi + (1.0 - pi) * 2.0 * normal_cdf(-kOutlierZ);
+}
+
+int Feature::bin(double v) const {
+  const auto it = std::upper_bound(edges.begin(), edges.end(), v);
+  const auto k = static_cast<int>(it - edges.begin()) - 1;
+  return k >= 0 && k + 1 < static_cast<int>(edges.size()) ? k : -1;
+}
+
+std::array<double, 2> Feature::range_of(int k) const {
+  const auto u = static_cast<size_t>(k);
+  return {edges[u], integer ? edges[u + 1] - 1 : edges[u + 1]};
+}
+
+namespace {
+
+constexpr size_t kMaxMaterials = 64;  // beyond this, materials are not binned one by one
+
+std::vector<double> integer_edges(int first, int last, int step) {
+  std::vector<double> edges;
+  for (int v = first; v <= last; v += step) edges.push_back(v);
+  if (edges.back() < last + 1) edges.push_back(last + 1);
+  return edges;
+}
+
+}  // namespace
+
+Features make_features(const PixelTable& t) {
+  Features f;
+  const auto add = [&](Feature feature) { f.by_name.emplace(feature.name, std::move(feature)); };
+  add({"range", {0, 1, 2, 3, 5, 8, 13, 20, 35, 60, 100, 200, 1e4}, false, [&t](size_t i) {
+         return f64(t.ideal_range_m[i]);
+       }});
+  // Values at a closed upper end (90°, 360°) are kept in the last bin.
+  add({"incidence", {0, 30, 45, 60, 75, 90}, false, [&t](size_t i) {
+         return std::min(f64(t.incidence_deg[i]), 89.999);
+       }});
+  add({"reflectivity", {0, 5, 10, 20, 40, 60, 80, 1e4}, false, [&t](size_t i) {
+         return 100.0 * f64(t.material_reflectivity[i]);
+       }});
+  add({"signal", {0, 10, 30, 100, 300, 1000, 3000, 10000, 1e12}, false, [&t](size_t i) {
+         return f64(t.expected_signal[i]);
+       }});
+  add({"near_ir", {0, 10, 30, 100, 300, 1000, 3000, 10000, 1e12}, false, [&t](size_t i) {
+         return f64(t.expected_near_ir[i]);
+       }});
+  add({"azimuth", {0, 45, 90, 135, 180, 225, 270, 315, 360}, false, [&t](size_t i) {
+         return std::min(f64(t.azimuth_deg[i]), 359.999);
+       }});
+  // Pixel distances (lidar-physics.md 3.2: 0, 1, 2, 3-5, more than 5).
+  add({"edge", {0, 1, 2, 3, 6, 7}, true, [&t](size_t i) { return t.edge[i]; }});
+  add({"retro", {0, 1, 2, 3, 6, 7}, true, [&t](size_t i) { return t.retro[i]; }});
+  int beams = 0;
+  for (const uint16_t b : t.beam) beams = std::max(beams, b + 1);
+  add({"beam", integer_edges(0, beams - 1, 1), true, [&t](size_t i) { return t.beam[i]; }, false});
+  add({"beam_group", integer_edges(0, beams - 1, 8), true, [&t](size_t i) { return t.beam[i]; }, false});
+  double t0 = 0.0, t1 = 0.0;
+  if (t.size() > 0) {
+    const auto [lo, hi] = std::minmax_element(t.time_s.begin(), t.time_s.end());
+    t0 = *lo;
+    t1 = *hi;
+  }
+  std::vector<double> time_edges;
+  for (int k = 0; k <= 5; ++k) time_edges.push_back((t1 - t0) * k / 5.0);
+  time_edges.back() = std::nextafter(time_edges.back(), 1e300);
+  add({"time", time_edges, false, [&t, t0](size_t i) { return t.time_s[i] - t0; }});
+  std::set<uint16_t> materials;
+  for (size_t i = 0; i < t.size() && materials.size() <= kMaxMaterials; ++i) {
+    if (t.ideal_range_m[i] > 0.0f) materials.insert(t.material[i]);
+  }
+  if (materials.size() <= kMaxMaterials && !materials.empty()) {
+    add({"material", integer_edges(0, *materials.rbegin(), 1), true, [&t](size_t i) { return t.material[i]; }, false});
+  }
+  return f;
+}
+
+}  // namespace lidartwin::analysis_detail
