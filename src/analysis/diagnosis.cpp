@@ -45,6 +45,9 @@ const std::vector<CandidateSpec>& candidate_specs() {
       // The halo's reach (decay_rows) and its returns' spread and strength stay at their defaults:
       // its rates beside the retroreflectors are what the likelihood sees most clearly.
       {"halo", {{"probability", 0.1, 0.05}, {"dropout_probability", 0.0, 0.05}}},
+      // Per-beam offsets and scales (E10): fitted in closed form (fit_beam_calibration), not by
+      // BOBYQA over 128 numbers.
+      {"beam_calibration", {}},
   };
   return specs;
 }
@@ -59,6 +62,7 @@ nlohmann::json::json_pointer pointer(const std::string& name) { return nlohmann:
 // would then be reported as a misfit of the profile's own noise.
 std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise) {
   const std::string name(effect.name());
+  if (name == "beam_calibration") return std::nullopt;  // its closed form fits it as a missing effect only
   for (const CandidateSpec& spec : candidate_specs()) {
     if (spec.effect == name) return spec;
   }
@@ -127,8 +131,78 @@ struct Placement {
   }
 };
 
+// The likelihood-ratio test, BIC and the fitted effect of a candidate with k free parameters.
+void score_candidate(Candidate& c, double base_nll, double nll, double k, size_t n) {
+  c.catalogue = effect_catalogue(c.effect).value_or("");
+  c.delta_nll = base_nll - nll;
+  c.delta_bic = 2.0 * c.delta_nll - k * std::log(static_cast<double>(n));
+  c.p_value = 1.0 - chi2_cdf(2.0 * c.delta_nll, k);
+}
+
+// E10 in closed form: each beam's offset and scale by weighted least squares of the residuals of
+// its returns within 5 sigma of the chain's prediction, r - mean = dr_b + s_b mean, weights
+// 1/sigma^2, over every pixel of the table (an even subsample can miss every other beam); the
+// intervals from the normal equations. Then scored like any candidate, on the fitted rows.
+Candidate fit_beam_calibration(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place,
+                               double base_nll, const PatternAdjustment* adjust) {
+  struct Sums {
+    double w = 0, wm = 0, wmm = 0, we = 0, wem = 0;
+  };
+  std::vector<Sums> beams;
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.ideal_range_m[i] <= 0.0f || t.range_m[i] <= 0.0f) continue;
+    Prediction p = place.base.predict(t.ideal_of(i), t.context_of(i));
+    if (adjust) adjust->apply(i, p);
+    const double mean = static_cast<double>(t.ideal_range_m[i]) + p.bias_m;
+    const double step = static_cast<double>(t.step_m[i]);
+    const double variance = p.variance_m2 + step * step / 12.0;
+    const double e = static_cast<double>(t.range_m[i]) - mean;
+    if (variance <= 0.0 || e * e > 25.0 * variance) continue;
+    if (t.beam[i] >= beams.size()) beams.resize(t.beam[i] + 1u);
+    Sums& b = beams[t.beam[i]];
+    const double w = 1.0 / variance;
+    b.w += w;
+    b.wm += w * mean;
+    b.wmm += w * mean * mean;
+    b.we += w * e;
+    b.wem += w * e * mean;
+  }
+  Candidate c;
+  c.effect = "beam_calibration";
+  nlohmann::json offsets = nlohmann::json::array(), scales = nlohmann::json::array();
+  std::vector<FittedParameter> offset_params, scale_params;
+  for (size_t b = 0; b < beams.size(); ++b) {
+    const Sums& s = beams[b];
+    const double det = s.w * s.wmm - s.wm * s.wm;
+    double offset = 0.0, scale = 0.0, var_offset = 0.0, var_scale = 0.0;
+    if (s.w > 0 && det > 1e-12 * s.w * s.wmm) {
+      scale = std::clamp((s.w * s.wem - s.wm * s.we) / det, -0.01, 0.01);
+      offset = std::clamp((s.we - scale * s.wm) / s.w, -0.5, 0.5);
+      var_offset = s.wmm / det;
+      var_scale = s.w / det;
+    } else if (s.w > 0) {  // one range only: an offset
+      offset = std::clamp(s.we / s.w, -0.5, 0.5);
+      var_offset = 1.0 / s.w;
+    }
+    offsets.push_back(offset);
+    scales.push_back(scale);
+    const double ho = 1.96 * std::sqrt(var_offset), hs = 1.96 * std::sqrt(var_scale);
+    offset_params.push_back({"offsets_m/" + std::to_string(b), offset, offset - ho, offset + ho});
+    scale_params.push_back({"scales/" + std::to_string(b), scale, scale - hs, scale + hs});
+  }
+  c.params = offset_params;
+  c.params.insert(c.params.end(), scale_params.begin(), scale_params.end());
+  c.effect_json = {{"name", "beam_calibration"}, {"offsets_m", offsets}, {"scales", scales}};
+  const double nll = total_nll(t, rows, place.chain_with(c.effect_json), adjust);
+  score_candidate(c, base_nll, nll, 2.0 * static_cast<double>(beams.size()), rows.size());
+  return c;
+}
+
 Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place, double base_nll,
               const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr) {
+  if (spec.effect == "beam_calibration" && spec.free.empty()) {
+    return fit_beam_calibration(t, rows, place, base_nll, adjust);
+  }
   // Bounds from the effect's own parameter table; a refit starts from the profile's values.
   const nlohmann::json start = place.start(spec);
   const EffectChain probe = place.chain_with(start);
@@ -171,11 +245,7 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
   }
   Candidate c;
   c.effect = spec.effect;
-  c.catalogue = effect_catalogue(spec.effect).value_or("");
-  c.delta_nll = base_nll - best;
-  const auto dof = static_cast<double>(x.size());
-  c.delta_bic = 2.0 * c.delta_nll - dof * std::log(static_cast<double>(rows.size()));
-  c.p_value = 1.0 - chi2_cdf(2.0 * c.delta_nll, dof);
+  score_candidate(c, base_nll, best, static_cast<double>(x.size()), rows.size());
   c.effect_json = effect_json(x);
   // 95 % intervals from the observed information: the NLL's Hessian by finite differences, inverted,
   // so correlated parameters (a dropout's threshold and width) widen each other's intervals. A

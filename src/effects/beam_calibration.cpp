@@ -1,12 +1,17 @@
 // E10 (lidar-physics.md "Per-beam intrinsic calibration errors"): each beam's range has its own
 // residual scale and offset after factory calibration, fixed per unit:
-//   r_measured = (1 + s_b) * r + dr_b,   dr_b ~ N(0, offset_sigma), s_b ~ N(0, scale_sigma).
-// The per-beam values are drawn from unit_seed (one seed = one sensor unit), so the same unit
-// keeps its values across frames, captures and the noise seed. Off by default: no published
-// per-beam range residuals for Ouster units.
+//   r_measured = (1 + s_b) * r + dr_b.
+// Two ways to give them. A unit: dr_b ~ N(0, offset_sigma_m), s_b ~ N(0, scale_sigma), drawn from
+// unit_seed (one seed = one sensor unit), so the same unit keeps its values across frames,
+// captures and the noise seed. Or tables, as a fit finds them or a user measures them:
+// offsets_m[b] and scales[b] (beams beyond a table: 0). Off by default: no published per-beam
+// range residuals for Ouster units.
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "effects/builtin_effects.h"
 #include "effects/parameters.h"
@@ -15,34 +20,51 @@ namespace lidartwin::effects_detail {
 namespace {
 
 constexpr uint32_t kUnitStream = 0x4531300Au;  // "E10\n": the unit's draws, apart from every noise stream
+constexpr std::string_view kName = "beam_calibration";
+constexpr uint32_t kTabled = 128;  // beams of the largest Ouster sensor
+constexpr Bounds kOffsetSigma{0.0, 0.5}, kScaleSigma{0.0, 0.01}, kSeed{0.0, 4294967295.0};
+constexpr Bounds kOffset{-0.5, 0.5}, kScale{-0.01, 0.01};
 
-struct BeamCalibrationParameters {
+struct Unit {
   double offset_sigma_m = 0.0;
   double scale_sigma = 0.0;
   double unit_seed = 0.0;
 };
+struct Tables {
+  std::vector<double> offsets_m;
+  std::vector<double> scales;  // as long as offsets_m
+};
 
-class BeamCalibration final : public TabledEffect<BeamCalibration, BeamCalibrationParameters> {
+// The unit's offset and scale of one beam.
+struct Beam {
+  double offset_m = 0.0;
+  double scale = 0.0;
+};
+
+Beam draw(const Unit& u, uint32_t b) {
+  const RandomStream unit(static_cast<uint64_t>(u.unit_seed), PixelKey{0, 0, b}, kUnitStream);
+  return {u.offset_sigma_m * unit.normal(0), u.scale_sigma * unit.normal(1)};
+}
+
+class BeamCalibration final : public Effect {
  public:
-  using P = BeamCalibrationParameters;
-  static constexpr std::string_view kName = "beam_calibration";
-  static constexpr std::array<ParameterSpec<P>, 3> kSpecs{{
-      {"offset_sigma_m", &P::offset_sigma_m, {0.0, 0.5}},
-      {"scale_sigma", &P::scale_sigma, {0.0, 0.01}},
-      {"unit_seed", &P::unit_seed, {0.0, 4294967295.0}},
-  }};
-  // The unit's values are drawn once, not per pixel (two Box-Muller draws cost more than the rest
-  // of the effect: pipeline_bench's every-effect chain).
-  explicit BeamCalibration(const P& p) : TabledEffect(p) {
-    for (uint32_t b = 0; b < kTabled; ++b) table_[b] = draw(b);
+  explicit BeamCalibration(const Unit& u) : unit_(u) {
+    for (uint32_t b = 0; b < kTabled; ++b) beams_[b] = draw(u, b);
+  }
+  explicit BeamCalibration(Tables t) : tables_(std::move(t)) {
+    for (uint32_t b = 0; b < kTabled && b < tables_->offsets_m.size(); ++b) {
+      beams_[b] = {tables_->offsets_m[b], tables_->scales[b]};
+    }
   }
 
-  // The unit's offset and scale of one beam.
-  struct Beam {
-    double offset_m = 0.0;
-    double scale = 0.0;
-  };
-  Beam beam(uint32_t b) const { return b < kTabled ? table_[b] : draw(b); }
+  std::string_view name() const override { return kName; }
+
+  // The unit's values are drawn (or read) once, not per pixel (two Box-Muller draws cost more than
+  // the rest of the effect: pipeline_bench's every-effect chain).
+  Beam beam(uint32_t b) const {
+    if (b < kTabled) return beams_[b];
+    return tables_ ? Beam{} : draw(unit_, b);
+  }
 
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext&, MeasuredColumn& measured) const override {
     float* range = measured.range_m.data();
@@ -60,19 +82,95 @@ class BeamCalibration final : public TabledEffect<BeamCalibration, BeamCalibrati
     prediction.variance_m2 *= (1.0 + b.scale) * (1.0 + b.scale);
   }
 
- private:
-  static constexpr uint32_t kTabled = 128;  // beams of the largest Ouster sensor
-  Beam draw(uint32_t b) const {
-    const RandomStream unit(static_cast<uint64_t>(params().unit_seed), PixelKey{0, 0, b}, kUnitStream);
-    return {params().offset_sigma_m * unit.normal(0), params().scale_sigma * unit.normal(1)};
+  std::vector<EffectParameter> parameters() const override {
+    if (!tables_) {
+      return {{"offset_sigma_m", unit_.offset_sigma_m, kOffsetSigma.lower, kOffsetSigma.upper},
+              {"scale_sigma", unit_.scale_sigma, kScaleSigma.lower, kScaleSigma.upper},
+              {"unit_seed", unit_.unit_seed, kSeed.lower, kSeed.upper}};
+    }
+    std::vector<EffectParameter> out;
+    for (size_t b = 0; b < tables_->offsets_m.size(); ++b) {
+      out.push_back({"offsets_m/" + std::to_string(b), tables_->offsets_m[b], kOffset.lower, kOffset.upper});
+    }
+    for (size_t b = 0; b < tables_->scales.size(); ++b) {
+      out.push_back({"scales/" + std::to_string(b), tables_->scales[b], kScale.lower, kScale.upper});
+    }
+    return out;
   }
-  std::array<Beam, kTabled> table_;
+
+  std::unique_ptr<Effect> with_parameters(std::span<const double> values) const override {
+    std::unique_ptr<Effect> copy;
+    if (!tables_) {
+      check_count(values.size(), 3, kName);
+      check_number(values[0], json_path(kName, "offset_sigma_m"), kOffsetSigma);
+      check_number(values[1], json_path(kName, "scale_sigma"), kScaleSigma);
+      check_number(values[2], json_path(kName, "unit_seed"), kSeed);
+      copy = std::make_unique<BeamCalibration>(Unit{values[0], values[1], values[2]});
+    } else {
+      const size_t n = tables_->offsets_m.size();
+      check_count(values.size(), 2 * n, kName);
+      Tables t{std::vector<double>(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(n)),
+               std::vector<double>(values.begin() + static_cast<std::ptrdiff_t>(n), values.end())};
+      for (size_t b = 0; b < n; ++b) {
+        check_number(t.offsets_m[b], json_path(json_path(kName, "offsets_m"), std::to_string(b)), kOffset);
+        check_number(t.scales[b], json_path(json_path(kName, "scales"), std::to_string(b)), kScale);
+      }
+      copy = std::make_unique<BeamCalibration>(std::move(t));
+    }
+    copy->set_stream_id(stream_id());
+    return copy;
+  }
+
+ private:
+  Unit unit_;
+  std::optional<Tables> tables_;
+  std::array<Beam, kTabled> beams_{};
 };
+
+std::vector<double> read_table(const nlohmann::json& params, std::string_view source, const char* key, Bounds bounds) {
+  const auto found = params.find(key);
+  if (found == params.end()) return {};
+  const std::string where = json_path(source, key);
+  if (!found->is_array()) fail(where, "must be an array of per-beam values");
+  if (found->size() > kTabled) fail(where, "at most " + std::to_string(kTabled) + " beams");
+  std::vector<double> values;
+  for (size_t b = 0; b < found->size(); ++b) {
+    values.push_back(read_number((*found)[b], json_path(where, std::to_string(b)), bounds));
+  }
+  return values;
+}
 
 }  // namespace
 
 std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source) {
-  return BeamCalibration::create(params, source);
+  static constexpr std::array<std::string_view, 5> kKeys{"offset_sigma_m", "scale_sigma", "unit_seed", "offsets_m",
+                                                         "scales"};
+  check_keys(params, source, kName, kKeys);
+  const bool tables = params.contains("offsets_m") || params.contains("scales");
+  const bool unit = params.contains("offset_sigma_m") || params.contains("scale_sigma") || params.contains("unit_seed");
+  if (tables && unit) {
+    fail(source,
+         "give either a unit (offset_sigma_m, scale_sigma, unit_seed) or per-beam tables (offsets_m, "
+         "scales), not both");
+  }
+  if (tables) {
+    Tables t{read_table(params, source, "offsets_m", kOffset), read_table(params, source, "scales", kScale)};
+    const size_t n = std::max(t.offsets_m.size(), t.scales.size());
+    t.offsets_m.resize(n, 0.0);
+    t.scales.resize(n, 0.0);
+    return std::make_unique<BeamCalibration>(std::move(t));
+  }
+  Unit u;
+  if (params.contains("offset_sigma_m")) {
+    u.offset_sigma_m = read_number(params["offset_sigma_m"], json_path(source, "offset_sigma_m"), kOffsetSigma);
+  }
+  if (params.contains("scale_sigma")) {
+    u.scale_sigma = read_number(params["scale_sigma"], json_path(source, "scale_sigma"), kScaleSigma);
+  }
+  if (params.contains("unit_seed")) {
+    u.unit_seed = read_number(params["unit_seed"], json_path(source, "unit_seed"), kSeed);
+  }
+  return std::make_unique<BeamCalibration>(u);
 }
 
 }  // namespace lidartwin::effects_detail

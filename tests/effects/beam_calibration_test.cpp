@@ -1,5 +1,5 @@
 // beam_calibration (E10): each beam of a unit keeps its own range offset and scale, drawn from the
-// unit seed; simulate applies exactly what predict says, beam by beam.
+// unit seed or given as per-beam tables; simulate applies exactly what predict says, beam by beam.
 #include "effects/effects_test_support.h"
 
 using namespace effects_test;  // NOLINT(google-build-using-namespace): the shared test helpers
@@ -47,6 +47,48 @@ TEST(BeamCalibration, AnotherUnitSeedIsAnotherUnit) {
 TEST(BeamCalibration, OffByDefault) {
   const Prediction p = chain_of(json::array({{{"name", "beam_calibration"}}})).predict(column_at(10.0f)[5], {});
   EXPECT_EQ(p.bias_m, 0.0);
+}
+
+// Tables, as the diagnosis fits them: beam b shifted by offsets_m[b] and scaled by scales[b];
+// beams beyond the tables left alone; the tables are the parameters (JSON pointers) and survive a
+// round trip through to_json and with_parameters.
+TEST(BeamCalibration, PerBeamTablesShiftEachBeamByItsOwnValues) {
+  const json tables = {{"name", "beam_calibration"}, {"offsets_m", {0.01, -0.02, 0.0}}, {"scales", {0.0, 0.001}}};
+  const EffectChain chain = chain_of(json::array({tables}));
+  const std::vector<IdealReturn> column = column_at(20.0f);
+  std::vector<Measurement> measured(kBeams);
+  chain.simulate(column, ColumnContext{1, 0, 0}, measured);
+  EXPECT_NEAR(measured[0].range_m, 20.01f, 1e-5f);
+  EXPECT_NEAR(measured[1].range_m, 20.0f * 1.001f - 0.02f, 1e-5f);
+  EXPECT_NEAR(measured[2].range_m, 20.0f, 1e-5f);
+  EXPECT_NEAR(measured[3].range_m, 20.0f, 1e-5f);  // beyond the tables
+  for (size_t b = 0; b < 4; ++b) {
+    EXPECT_NEAR(20.0 + chain.predict(column[b], {}).bias_m, static_cast<double>(measured[b].range_m), 1e-5);
+  }
+  const auto& effect = *chain.effects()[0];
+  ASSERT_EQ(effect.parameters().size(), 6u);  // the scales table padded to the offsets' length
+  EXPECT_EQ(effect.parameters()[1].name, "offsets_m/1");
+  EXPECT_EQ(effect.to_json()["scales"], json({0.0, 0.001, 0.0}));
+  const std::vector<double> values{0.0, 0.0, 0.03, 0.0, 0.0, 0.0};
+  EXPECT_NEAR(effect.with_parameters(values)->to_json()["offsets_m"][2].get<double>(), 0.03, 1e-12);
+}
+
+TEST(BeamCalibration, AUnitAndTablesTogetherOrValuesOutOfBoundsAreErrors) {
+  const auto error_of = [](const json& effect) {
+    try {
+      (void)EffectChain::from_json(json::array({effect}), "e10.json: /effects");
+    } catch (const lidartwin::InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error_of({{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}, {"offsets_m", {0.0}}}),
+            "e10.json: /effects/0: give either a unit (offset_sigma_m, scale_sigma, unit_seed) or per-beam tables "
+            "(offsets_m, scales), not both");
+  EXPECT_EQ(error_of({{"name", "beam_calibration"}, {"offsets_m", {0.0, 0.7}}}),
+            "e10.json: /effects/0/offsets_m/1: must be in [-0.5, 0.5], got 0.7");
+  EXPECT_EQ(error_of({{"name", "beam_calibration"}, {"scales", 0.001}}),
+            "e10.json: /effects/0/scales: must be an array of per-beam values");
 }
 
 }  // namespace

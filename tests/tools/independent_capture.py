@@ -26,9 +26,18 @@ the sensor frame, mm) is intersected analytically with the box; the distance s a
 noise-free range. Gaussian noise with sigma = sigma0 + slope * s[m] (metres) is added, then the value
 is rounded to whole mm. Reflectivity 50, signal round(2e5 / R_m^2), near-IR 20 for every pixel.
 
+Hidden effects, written from lidar-physics.md's models alone (all off by default):
+  E4  --divergence G          variance += (r tan(theta) G / 2.355)^2, theta the incidence on the wall
+  E10 --beam-offset-sigma S   r' = (1 + s_b) r + dr_b, dr_b ~ N(0, S), s_b ~ N(0, --beam-scale-sigma),
+                              per beam, drawn from --beam-seed (one unit)
+  E12 --drift-mu0 A --drift-muinf B --drift-tau T
+                              common-mode offset mu(t) = B + (A - B) exp(-t / T), t the column's time
+                              since the capture's first column
+The true values go to truth.json beside the capture (per-beam offsets and scales included).
+
 Run (numpy is needed; use the system interpreter):
   /usr/bin/python3 tests/tools/independent_capture.py OUT_DIR [--frames N] [--seed S]
-                   [--sigma0 0.01] [--slope 0.0014]
+                   [--sigma0 0.01] [--slope 0.0014] [hidden effects]
 Use --sigma0 0 --slope 0 for noise-free ranges (each decoded point then lies within 0.5 mm of a wall).
 """
 
@@ -211,25 +220,59 @@ def beam_rays(meta):
     return o @ R.T + t, d @ R.T
 
 
-def box_exit_distance(origin, direction, lo, hi):
-    """Distance along unit `direction` from `origin` (inside the box) to the first wall (slab method)."""
+def box_exit(origin, direction, lo, hi):
+    """Distance along unit `direction` from `origin` (inside the box) to the first wall (slab method),
+    and the cosine of the incidence there (the wall's normal is the axis the ray leaves by)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         bound = np.where(direction > 0, hi, lo)
         t = np.where(direction != 0, (bound - origin) / direction, np.inf)
-    return t.min(axis=-1)
+    axis = t.argmin(axis=-1)
+    cos_incidence = np.abs(np.take_along_axis(direction, axis[..., None], axis=-1)[..., 0])
+    return t.min(axis=-1), cos_incidence
 
 
 def true_ranges_mm(meta):
-    """Noise-free range (mm, float) per (row, measurement id); the sensor frame equals the world frame."""
+    """Noise-free range (mm, float) and the incidence's cosine per (row, measurement id); the sensor
+    frame equals the world frame."""
     origin, direction = beam_rays(meta)
-    return box_exit_distance(origin, direction, BOX_MIN_M * 1000.0, BOX_MAX_M * 1000.0)
+    return box_exit(origin, direction, BOX_MIN_M * 1000.0, BOX_MAX_M * 1000.0)
 
 
-def measured_ranges_mm(true_mm, rng, sigma0, slope):
-    """Add N(0, sigma0 + slope * R_m) metres of noise, round to whole mm, clip to the 19-bit field."""
-    sigma_mm = 1000.0 * (sigma0 + slope * true_mm / 1000.0)
-    noisy = true_mm + rng.standard_normal(true_mm.shape) * sigma_mm
-    return np.clip(np.rint(noisy), 1, 0x7FFFF).astype(np.uint32)
+class Hidden:
+    """The hidden effects (lidar-physics.md E4, E10, E12) of one capture."""
+
+    def __init__(self, args):
+        self.divergence = args.divergence
+        unit = np.random.default_rng(args.beam_seed)
+        self.beam_offset_m = unit.standard_normal(H) * args.beam_offset_sigma
+        self.beam_scale = unit.standard_normal(H) * args.beam_scale_sigma
+        self.mu0, self.muinf, self.tau = args.drift_mu0, args.drift_muinf, args.drift_tau
+
+    def truth(self):
+        return {"divergence_rad": self.divergence,
+                "beam_offsets_m": self.beam_offset_m.tolist(), "beam_scales": self.beam_scale.tolist(),
+                "drift_mu0_m": self.mu0, "drift_muinf_m": self.muinf, "drift_tau_s": self.tau}
+
+    def sigma_m(self, true_m, cos_incidence):
+        """E4: the footprint's extra standard deviation, r tan(theta) gamma / 2.355."""
+        tan = np.sqrt(np.maximum(1.0 - cos_incidence ** 2, 0.0)) / np.maximum(cos_incidence, 1e-9)
+        return true_m * np.minimum(tan, 20.0) * self.divergence / 2.355
+
+    def mean_m(self, true_m, frame):
+        """E10 per beam (rows) and E12 per column time."""
+        per_beam = (1.0 + self.beam_scale[:, None]) * true_m + self.beam_offset_m[:, None]
+        t_s = (column_timestamp_ns(frame, np.arange(W)) - T0_NS) / 1e9
+        drift = self.muinf + (self.mu0 - self.muinf) * np.exp(-t_s / self.tau) if self.tau > 0 else 0.0
+        return per_beam + np.broadcast_to(drift, (W,))[None, :]
+
+
+def measured_ranges_mm(true_mm, cos_incidence, rng, sigma0, slope, hidden, frame):
+    """Add N(0, sigma0 + slope * R_m) metres of noise (and the hidden effects), round to whole mm,
+    clip to the 19-bit field."""
+    true_m = true_mm / 1000.0
+    sigma_m = np.sqrt((sigma0 + slope * true_m) ** 2 + hidden.sigma_m(true_m, cos_incidence) ** 2)
+    noisy_m = hidden.mean_m(true_m, frame) + rng.standard_normal(true_mm.shape) * sigma_m
+    return np.clip(np.rint(noisy_m * 1000.0), 1, 0x7FFFF).astype(np.uint32)
 
 
 # ---------------------------------------------------------------- lidar packets (4.3 - 4.6)
@@ -314,14 +357,14 @@ def pcap_record(ts_ns, frame_bytes):
     return struct.pack("<IIII", sec, usec, len(frame_bytes), len(frame_bytes)) + frame_bytes
 
 
-def write_pcap(path, meta, frames, rng, sigma0, slope):
-    true_mm = true_ranges_mm(meta)
+def write_pcap(path, meta, frames, rng, sigma0, slope, hidden):
+    true_mm, cos_incidence = true_ranges_mm(meta)
     signal = signal_counts(true_mm)
     ident = 0
     with open(path, "wb") as f:
         f.write(pcap_global_header())
         for frame in range(frames):
-            ranges = measured_ranges_mm(true_mm, rng, sigma0, slope)   # one (H, W) draw per frame
+            ranges = measured_ranges_mm(true_mm, cos_incidence, rng, sigma0, slope, hidden, frame)
             for first_mid in range(0, W, CPP):
                 packet = lidar_packet(frame, first_mid, ranges, signal)
                 f.write(pcap_record(column_timestamp_ns(frame, first_mid), udp_frame(packet, ident)))
@@ -337,6 +380,13 @@ def parse_args():
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--sigma0", type=float, default=0.010, help="range noise at 0 m, metres")
     p.add_argument("--slope", type=float, default=0.0014, help="range noise growth, metres per metre")
+    p.add_argument("--divergence", type=float, default=0.0, help="E4: beam divergence (FWHM), rad")
+    p.add_argument("--beam-offset-sigma", type=float, default=0.0, help="E10: per-beam offsets' sd, m")
+    p.add_argument("--beam-scale-sigma", type=float, default=0.0, help="E10: per-beam scales' sd")
+    p.add_argument("--beam-seed", type=int, default=7, help="E10: the unit")
+    p.add_argument("--drift-mu0", type=float, default=0.0, help="E12: common offset at t = 0, m")
+    p.add_argument("--drift-muinf", type=float, default=0.0, help="E12: common offset after warm-up, m")
+    p.add_argument("--drift-tau", type=float, default=0.0, help="E12: warm-up time constant, s (0: off)")
     return p.parse_args()
 
 
@@ -349,8 +399,11 @@ def main():
     with open(os.path.join(args.out_dir, "metadata.json"), "w") as f:
         json.dump(meta, f, indent=1)
     rng = np.random.default_rng(args.seed)
+    hidden = Hidden(args)
+    with open(os.path.join(args.out_dir, "truth.json"), "w") as f:
+        json.dump(hidden.truth(), f, indent=1)
     n = write_pcap(os.path.join(args.out_dir, "capture.pcap"), meta, args.frames, rng,
-                   args.sigma0, args.slope)
+                   args.sigma0, args.slope, hidden)
     print("scene: scene.gltf")
     print(f"wrote scene.gltf, pose.tum, metadata.json, capture.pcap ({n} lidar packets of "
           f"{PACKET_BYTES} B, {args.frames} frames) to {args.out_dir}")
