@@ -7,36 +7,18 @@
 
 #include <gtest/gtest.h>
 
+#include "analysis/synthetic_table.h"
+
 namespace lidartwin {
 namespace {
 
-// 64 beams x 512 columns x 4 frames of a scene at 1-60 m (by beam and column), the model saying
-// sigma = 20 mm everywhere; the measured spread is wider by `factor` where the ideal range lies
-// in [band_lo, band_hi).
+// support: synthetic_table.h; the measured spread is wider by `factor` where the ideal range lies
+// in [band_lo, band_hi), and shifted by bias_m there.
 PixelTable synthetic(double factor, double band_lo, double band_hi, double bias_m = 0.0) {
   std::mt19937_64 rng(7);
-  PixelTable t;
-  const size_t n = 4 * 512 * 64;
-  t.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const auto beam = static_cast<uint16_t>(i % 64);
-    const auto column = static_cast<uint16_t>(i / 64 % 512);
-    t.frame[i] = static_cast<uint32_t>(i / (64 * 512));
-    t.beam[i] = beam;
-    t.column[i] = column;
-    t.time_s[i] = t.frame[i] * 0.1 + column * 0.1 / 512;
-    const double ideal = 1.0 + 59.0 * ((beam * 7 + column) % 512) / 512.0;
-    t.ideal_range_m[i] = static_cast<float>(ideal);
-    t.incidence_deg[i] = static_cast<float>(beam % 80);
-    t.material_reflectivity[i] = 0.5f;
-    t.azimuth_deg[i] = static_cast<float>(360.0 - 360.0 * column / 512);
-    t.predicted_sigma_m[i] = 0.02f;
-    t.p_detect[i] = 1.0f;
-    t.window_min_m[i] = 0.3f;
-    t.window_max_m[i] = 101.0f;
-    t.step_m[i] = 0.001f;
-    t.expected_signal[i] = 500.0f;
-    t.expected_near_ir[i] = 50.0f;
+  PixelTable t = test::synthetic_layout();
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double ideal = static_cast<double>(t.ideal_range_m[i]);
     const bool in_band = ideal >= band_lo && ideal < band_hi;
     std::normal_distribution<double> noise(in_band ? bias_m : 0.0, 0.02 * (in_band ? factor : 1.0));
     t.range_m[i] = static_cast<float>(std::round((ideal + noise(rng)) * 1000.0) / 1000.0);

@@ -11,6 +11,8 @@
 
 #include <gtest/gtest.h>
 
+#include "analysis/synthetic_table.h"
+
 namespace lidartwin {
 namespace {
 
@@ -20,39 +22,19 @@ struct Hidden {
   double loss_in_azimuth_90_135 = 0.0;
 };
 
-// 64 beams x 512 columns x 4 frames of a scene at 1-60 m (by beam and column), the model saying
-// sigma = 20 mm and certain detection everywhere; the measured pixels carry `hidden`.
+// support: synthetic_table.h, with the expected signal falling as 1/r^2; the measured pixels carry
+// `hidden`.
 PixelTable synthetic(const Hidden& hidden) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  PixelTable t;
-  const size_t n = 4 * 512 * 64;
-  t.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const auto beam = static_cast<uint16_t>(i % 64);
-    const auto column = static_cast<uint16_t>(i / 64 % 512);
-    t.frame[i] = static_cast<uint32_t>(i / (64 * 512));
-    t.beam[i] = beam;
-    t.column[i] = column;
-    t.time_s[i] = t.frame[i] * 0.1 + column * 0.1 / 512;
-    const double ideal = 1.0 + 59.0 * ((beam * 7 + column) % 512) / 512.0;
-    t.ideal_range_m[i] = static_cast<float>(ideal);
-    t.incidence_deg[i] = static_cast<float>(beam % 80);
-    t.material_reflectivity[i] = 0.5f;
-    const double azimuth = 360.0 - 360.0 * column / 512;
-    t.azimuth_deg[i] = static_cast<float>(azimuth);
-    t.predicted_sigma_m[i] = 0.02f;
-    t.p_detect[i] = 1.0f;
-    t.window_min_m[i] = 0.3f;
-    t.window_max_m[i] = 101.0f;
-    t.step_m[i] = 0.001f;
+  PixelTable t = test::synthetic_layout();
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double ideal = static_cast<double>(t.ideal_range_m[i]);
     t.expected_signal[i] = static_cast<float>(2e5 / (ideal * ideal));
-    t.expected_near_ir[i] = 50.0f;
-    t.edge[i] = PixelTable::kFarPixels;
-    t.retro[i] = PixelTable::kFarPixels;
     double bias = hidden.bias_everywhere_m;
-    if (beam >= 10 && beam <= 13) bias += hidden.bias_on_beams_10_13_m;
+    if (t.beam[i] >= 10 && t.beam[i] <= 13) bias += hidden.bias_on_beams_10_13_m;
     std::normal_distribution<double> noise(bias, 0.02);
+    const double azimuth = static_cast<double>(t.azimuth_deg[i]);
     const bool lost = azimuth >= 90 && azimuth < 135 && uniform(rng) < hidden.loss_in_azimuth_90_135;
     t.range_m[i] = lost ? 0.0f : static_cast<float>(std::round((ideal + noise(rng)) * 1000.0) / 1000.0);
   }
