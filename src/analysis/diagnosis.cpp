@@ -362,11 +362,16 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
     // given the candidate was only absorbing part of an effect it is not (a signal-driven dropout
     // taking up some of a few weak beams' losses, a common drift one material's bias). Where each
     // explains the other (a range walk and a bias per signal bin), the physical effect is kept.
-    const PixelTable now = repredicted(table, current);
-    const PixelScores now_scores = score_pixels(now);
-    const FeaturePattern pattern = strongest_pattern(now, now_scores);
+    // (The repredicted tables live one at a time: each is as large as the capture's table.)
+    FeaturePattern pattern;
+    PatternAdjustment adjust;
+    {
+      const PixelTable now = repredicted(table, current);
+      const PixelScores now_scores = score_pixels(now);
+      pattern = strongest_pattern(now, now_scores);
+      if (!pattern.quantity.empty()) adjust = pattern_adjustment(now, now_scores, pattern);
+    }
     if (!pattern.quantity.empty()) {
-      const PatternAdjustment adjust = pattern_adjustment(now, now_scores, pattern);
       const double with_pattern = total_nll(table, rows, current, &adjust);
       const double pattern_bic =
           2.0 * (current_nll - with_pattern) - pattern.dof * std::log(static_cast<double>(rows.size()));
