@@ -167,6 +167,10 @@ Candidate fit_beam_calibration(const PixelTable& t, const std::vector<size_t>& r
     b.we += w * e;
     b.wem += w * e * mean;
   }
+  // The tables' bounds, as the effect states them.
+  const EffectChain probe = EffectChain::from_json(
+      nlohmann::json::array({{{"name", "beam_calibration"}, {"offsets_m", {0.0}}, {"scales", {0.0}}}}), "E10 fit");
+  const std::vector<EffectParameter> bounds = probe.effects().front()->parameters();  // offsets_m/0, scales/0
   Candidate c;
   c.effect = "beam_calibration";
   nlohmann::json offsets = nlohmann::json::array(), scales = nlohmann::json::array();
@@ -176,12 +180,12 @@ Candidate fit_beam_calibration(const PixelTable& t, const std::vector<size_t>& r
     const double det = s.w * s.wmm - s.wm * s.wm;
     double offset = 0.0, scale = 0.0, var_offset = 0.0, var_scale = 0.0;
     if (s.w > 0 && det > 1e-12 * s.w * s.wmm) {
-      scale = std::clamp((s.w * s.wem - s.wm * s.we) / det, -0.01, 0.01);
-      offset = std::clamp((s.we - scale * s.wm) / s.w, -0.5, 0.5);
+      scale = std::clamp((s.w * s.wem - s.wm * s.we) / det, bounds[1].lower, bounds[1].upper);
+      offset = std::clamp((s.we - scale * s.wm) / s.w, bounds[0].lower, bounds[0].upper);
       var_offset = s.wmm / det;
       var_scale = s.w / det;
     } else if (s.w > 0) {  // one range only: an offset
-      offset = std::clamp(s.we / s.w, -0.5, 0.5);
+      offset = std::clamp(s.we / s.w, bounds[0].lower, bounds[0].upper);
       var_offset = 1.0 / s.w;
     }
     offsets.push_back(offset);

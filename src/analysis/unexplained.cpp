@@ -71,16 +71,17 @@ Residual residual_of(const std::string& quantity, const PixelTable& t, const Pix
     r.m[i] = static_cast<float>(m);
     r.q[i] = static_cast<float>(q);
   };
+  const bool detection = quantity == "detection", outliers = quantity == "outliers", bias = quantity == "bias";
   for (size_t i = 0; i < n; ++i) {
     if (t.ideal_range_m[i] <= 0.0f) continue;
     const bool returned = t.range_m[i] > 0.0f;
-    if (quantity == "detection") {
+    if (detection) {
       put(i, 0.0, 1.0, returned ? 1.0 : 0.0, likelihood_floor(f64(t.p_detect[i])));
       continue;
     }
     if (!returned) continue;
     const bool outlier = s.impossible[i] || std::abs(f64(s.z[i])) > kOutlierZ;
-    if (quantity == "outliers") {
+    if (outliers) {
       put(i, 0.0, 1.0, outlier ? 1.0 : 0.0, likelihood_floor(expected_outlier_share(t, i)));
       continue;
     }
@@ -88,7 +89,7 @@ Residual residual_of(const std::string& quantity, const PixelTable& t, const Pix
     const double sd = f64(s.sd_m[i]), step = f64(t.step_m[i]);
     const double vz = 1.0 + step * step / (12.0 * sd * sd);  // z's variance, with the range bins' (Sheppard)
     const double e = f64(t.range_m[i]) - f64(s.mean_m[i]);
-    if (quantity == "bias") {
+    if (bias) {
       const double ideal = f64(t.ideal_range_m[i]);
       put(i, e / (sd * sd), vz / (sd * sd), f64(t.range_m[i]) - ideal, f64(s.mean_m[i]) - ideal);
     } else {
@@ -480,6 +481,10 @@ PatternAdjustment pattern_adjustment(const PixelTable& table, const PixelScores&
                                      const FeaturePattern& pattern) {
   PatternAdjustment out;
   out.quantity = pattern.quantity;
+  out.target = pattern.quantity == "bias"        ? PatternAdjustment::Target::kBias
+               : pattern.quantity == "spread"    ? PatternAdjustment::Target::kSpread
+               : pattern.quantity == "detection" ? PatternAdjustment::Target::kDetection
+                                                 : PatternAdjustment::Target::kOutliers;
   if (pattern.quantity.empty()) return out;
   const Features features = analysis_detail::make_features(table);
   const Feature& f = features[pattern.feature];
@@ -516,14 +521,11 @@ void PatternAdjustment::apply(size_t pixel, Prediction& p) const {
   const int16_t k = bin[pixel];
   if (k < 0) return;
   const double v = value[static_cast<size_t>(k)];
-  if (quantity == "bias") {
-    p.bias_m += v;
-  } else if (quantity == "spread") {
-    p.variance_m2 *= v;
-  } else if (quantity == "detection") {
-    p.p_detect = std::min(p.p_detect * v, 1.0);
-  } else {
-    p.outlier_mix = std::clamp(p.outlier_mix + v, 0.0, 1.0);
+  switch (target) {
+    case Target::kBias: p.bias_m += v; break;
+    case Target::kSpread: p.variance_m2 *= v; break;
+    case Target::kDetection: p.p_detect = std::min(p.p_detect * v, 1.0); break;
+    case Target::kOutliers: p.outlier_mix = std::clamp(p.outlier_mix + v, 0.0, 1.0); break;
   }
 }
 

@@ -60,8 +60,10 @@ FeaturePattern strongest_pattern(const PixelTable& table, const PixelScores& sco
 // candidate still gains once the pattern is explained.
 struct PatternAdjustment {
   std::string quantity;
-  std::vector<int16_t> bin;   // per pixel of the table (-1: left alone)
-  std::vector<double> value;  // per bin
+  enum class Target { kBias, kSpread, kDetection, kOutliers };
+  Target target = Target::kBias;  // the quantity, decided once: apply() runs per pixel per fit step
+  std::vector<int16_t> bin;       // per pixel of the table (-1: left alone)
+  std::vector<double> value;      // per bin
   void apply(size_t pixel, Prediction& prediction) const;
 };
 PatternAdjustment pattern_adjustment(const PixelTable& table, const PixelScores& scores, const FeaturePattern& pattern);
