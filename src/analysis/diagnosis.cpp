@@ -325,6 +325,15 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
     if (!present.count(spec.effect)) pool.push_back(&spec);
   }
   EffectChain current = chain;
+  // The signal channel first: the capture's own radiometric constants (its gain and near-field
+  // overlap), against which every signal-driven candidate is judged. On its own channel, so it runs
+  // whether or not the range misfits.
+  if (options.refit_profile) {
+    if (std::optional<ParameterMisfit> m = refit_radiometry(table, chain, options)) {
+      current = Placement{current, m->index}.chain_with(m->refit.effect_json);
+      d.parameter_misfit.push_back(std::move(*m));
+    }
+  }
   double current_nll = total_nll(table, rows, current);
   // Parameter misfit first: the profile's own fittable effects refitted, each given the others as
   // they stand, kept where the likelihood-ratio test and BIC say the profile's values misfit; the
@@ -486,6 +495,10 @@ std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& c
   return fits;
 }
 
+EffectChain with_refit(const EffectChain& chain, const ParameterMisfit& refit) {
+  return Placement{chain, refit.index}.chain_with(refit.refit.effect_json);
+}
+
 EffectChain chain_with(const EffectChain& chain, const std::vector<Candidate>& added) {
   EffectChain out = chain;
   for (const Candidate& c : added) out = with_candidate(out, c.effect_json);
@@ -511,6 +524,7 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
     for (const auto& [name, value] : m.old_values) old_values[name] = value;
     entry["old"] = old_values;
     entry["index"] = m.index;
+    entry["channel"] = m.channel;
     refits.push_back(entry);
   }
   nlohmann::json unexplained = nlohmann::json::array();

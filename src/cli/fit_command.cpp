@@ -70,7 +70,13 @@ int run_fit(const FitFlags& flags) {
     base = diagnosis.refitted;  // the profile's own effects whose parameters misfit, refitted
     for (const ParameterMisfit& m : diagnosis.parameter_misfit) noted.push_back(m.refit);
   } else {
-    fits = fit_effects(measured.table, chain, flags.add, options);
+    // The capture's own radiometric constants first, as the diagnosis does: the added effects are
+    // fitted against the expected signal they make.
+    if (std::optional<ParameterMisfit> m = refit_radiometry(measured.table, chain, options)) {
+      base = with_refit(chain, *m);
+      noted.push_back(m->refit);
+    }
+    fits = fit_effects(measured.table, base, flags.add, options);
   }
   steps.done();
   noted.insert(noted.end(), fits.begin(), fits.end());

@@ -24,7 +24,13 @@ Files written to OUT_DIR:
 Range model: for beam (row r, measurement id m) the ray of section 7.1 (origin O_s, unit direction D_s in
 the sensor frame, mm) is intersected analytically with the box; the distance s along D_s is the
 noise-free range. Gaussian noise with sigma = sigma0 + slope * s[m] (metres) is added, then the value
-is rounded to whole mm. Reflectivity 50, signal round(2e5 / R_m^2), near-IR 20 for every pixel.
+is rounded to whole mm.
+
+Radiometry (lidar-physics.md 2.2, with this generator's own constants, written to truth.json):
+  S = K rho cos(theta) g(r) / r^2, g(r) = 1 / (1 + (r0 / r)^p)   expected signal photons
+  B = A rho                                                     expected ambient (near-IR) photons
+  SIGNAL ~ Poisson(S), NEAR_IR ~ Poisson(B), REFLECTIVITY = round(100 rho cos(theta))
+with K = 2.2e5 photons m^2, r0 = 5 m, p = 3, A = 30 photons and rho = 0.5 (the scene's material).
 
 Hidden effects, written from lidar-physics.md's models alone (all off by default):
   E4  --divergence G          variance += (r tan(theta) G / 2.355)^2, theta the incidence on the wall
@@ -33,7 +39,11 @@ Hidden effects, written from lidar-physics.md's models alone (all off by default
   E12 --drift-mu0 A --drift-muinf B --drift-tau T
                               common-mode offset mu(t) = B + (A - B) exp(-t / T), t the column's time
                               since the capture's first column
-The true values go to truth.json beside the capture (per-beam offsets and scales included).
+  E2  --snr-k K               variance += K^2 (S + B) / S^2 (signal-dependent precision)
+  E5  --detect-threshold T --detect-width W
+                              a return is reported with probability 1 / (1 + exp(-(ln S - ln T) / W));
+                              otherwise range, signal and reflectivity are 0
+The true values go to truth.json beside the capture (per-beam offsets and scales, radiometry included).
 
 Run (numpy is needed; use the system interpreter):
   /usr/bin/python3 tests/tools/independent_capture.py OUT_DIR [--frames N] [--seed S]
@@ -238,10 +248,29 @@ def true_ranges_mm(meta):
     return box_exit(origin, direction, BOX_MIN_M * 1000.0, BOX_MAX_M * 1000.0)
 
 
+class Radiometry:
+    """lidar-physics.md 2.2: the expected signal and ambient of each pixel, this generator's constants."""
+    GAIN, OVERLAP_M, OVERLAP_EXPONENT, AMBIENT, RHO = 2.2e5, 5.0, 3.0, 30.0, 0.5
+
+    def __init__(self, true_mm, cos_incidence):
+        r_m = true_mm / 1000.0
+        overlap = 1.0 / (1.0 + (self.OVERLAP_M / r_m) ** self.OVERLAP_EXPONENT)
+        self.rho_app = self.RHO * cos_incidence
+        self.signal = self.GAIN * self.rho_app * overlap / r_m ** 2
+        self.ambient = np.full(true_mm.shape, self.AMBIENT * self.RHO)
+
+    @classmethod
+    def truth(cls):
+        return {"gain_photons_m2": cls.GAIN, "overlap_range_m": cls.OVERLAP_M,
+                "overlap_exponent": cls.OVERLAP_EXPONENT, "ambient_photons": cls.AMBIENT}
+
+
 class Hidden:
-    """The hidden effects (lidar-physics.md E4, E10, E12) of one capture."""
+    """The hidden effects (lidar-physics.md E2, E4, E5, E10, E12) of one capture."""
 
     def __init__(self, args):
+        self.snr_k = args.snr_k
+        self.threshold, self.width = args.detect_threshold, args.detect_width
         self.divergence = args.divergence
         unit = np.random.default_rng(args.beam_seed)
         self.beam_offset_m = unit.standard_normal(H) * args.beam_offset_sigma
@@ -249,14 +278,24 @@ class Hidden:
         self.mu0, self.muinf, self.tau = args.drift_mu0, args.drift_muinf, args.drift_tau
 
     def truth(self):
-        return {"divergence_rad": self.divergence,
+        return {"snr_k_m": self.snr_k, "detect_threshold_photons": self.threshold, "detect_width": self.width,
+                "divergence_rad": self.divergence,
                 "beam_offsets_m": self.beam_offset_m.tolist(), "beam_scales": self.beam_scale.tolist(),
                 "drift_mu0_m": self.mu0, "drift_muinf_m": self.muinf, "drift_tau_s": self.tau}
 
-    def sigma_m(self, true_m, cos_incidence):
-        """E4: the footprint's extra standard deviation, r tan(theta) gamma / 2.355."""
+    def variance_m2(self, true_m, cos_incidence, radiometry):
+        """E4: the footprint's, (r tan(theta) gamma / 2.355)^2; E2: k^2 (S + B) / S^2."""
         tan = np.sqrt(np.maximum(1.0 - cos_incidence ** 2, 0.0)) / np.maximum(cos_incidence, 1e-9)
-        return true_m * np.minimum(tan, 20.0) * self.divergence / 2.355
+        footprint = true_m * np.minimum(tan, 20.0) * self.divergence / 2.355
+        s = np.maximum(radiometry.signal, 1.0)
+        return footprint ** 2 + self.snr_k ** 2 * (s + radiometry.ambient) / s ** 2
+
+    def detected(self, radiometry, rng):
+        """E5: which returns are reported."""
+        if self.threshold <= 0:
+            return np.ones(radiometry.signal.shape, dtype=bool)
+        x = (np.log(radiometry.signal) - np.log(self.threshold)) / self.width
+        return rng.random(radiometry.signal.shape) < 1.0 / (1.0 + np.exp(-x))
 
     def mean_m(self, true_m, frame):
         """E10 per beam (rows) and E12 per column time."""
@@ -266,13 +305,21 @@ class Hidden:
         return per_beam + np.broadcast_to(drift, (W,))[None, :]
 
 
-def measured_ranges_mm(true_mm, cos_incidence, rng, sigma0, slope, hidden, frame):
+def measured_ranges_mm(true_mm, cos_incidence, radiometry, rng, sigma0, slope, hidden, frame):
     """Add N(0, sigma0 + slope * R_m) metres of noise (and the hidden effects), round to whole mm,
     clip to the 19-bit field."""
     true_m = true_mm / 1000.0
-    sigma_m = np.sqrt((sigma0 + slope * true_m) ** 2 + hidden.sigma_m(true_m, cos_incidence) ** 2)
+    sigma_m = np.sqrt((sigma0 + slope * true_m) ** 2 + hidden.variance_m2(true_m, cos_incidence, radiometry))
     noisy_m = hidden.mean_m(true_m, frame) + rng.standard_normal(true_mm.shape) * sigma_m
     return np.clip(np.rint(noisy_m * 1000.0), 1, 0x7FFFF).astype(np.uint32)
+
+
+def measured_channels(radiometry, rng):
+    """SIGNAL ~ Poisson(S), NEAR_IR ~ Poisson(B), REFLECTIVITY = round(100 rho_app), clipped to their fields."""
+    signal = np.clip(rng.poisson(radiometry.signal), 1, 65535).astype(np.uint16)
+    nir = np.clip(rng.poisson(radiometry.ambient), 0, 65535).astype(np.uint16)
+    refl = np.clip(np.rint(100.0 * radiometry.rho_app), 0, 100).astype(np.uint8)
+    return signal, refl, nir
 
 
 # ---------------------------------------------------------------- lidar packets (4.3 - 4.6)
@@ -291,31 +338,26 @@ def packet_header(frame_id):
     return struct.pack("<HHQ", 1, frame_id & 0xFFFF, ids) + bytes(20)
 
 
-def column_block(ts_ns, mid, ranges_mm, signal):
+def column_block(ts_ns, mid, ranges_mm, signal, refl, nir):
     """12-byte column header (timestamp, measurement_id, status bit0 = valid) + H pixels, row 0 first."""
     px = np.zeros(H, dtype=PIXEL_DTYPE)
     px["range"] = ranges_mm & 0x7FFFF                      # bits 0-18; FLAGS bits 19-23 stay 0
-    px["refl"] = 50
+    px["refl"] = refl
     px["signal"] = signal
-    px["nir"] = 20
+    px["nir"] = nir
     return struct.pack("<QHH", ts_ns, mid, 0x0001) + px.tobytes()
 
 
-def lidar_packet(frame, first_mid, ranges_mm, signal):
-    """One 12544-byte lidar packet: columns first_mid .. first_mid+15 of `ranges_mm` (H, W)."""
+def lidar_packet(frame, first_mid, ranges_mm, signal, refl, nir):
+    """One 12544-byte lidar packet: columns first_mid .. first_mid+15 of the (H, W) channels."""
     parts = [packet_header(frame)]
     for mid in range(first_mid, first_mid + CPP):
         parts.append(column_block(column_timestamp_ns(frame, mid), mid,
-                                  ranges_mm[:, mid], signal[:, mid]))
+                                  ranges_mm[:, mid], signal[:, mid], refl[:, mid], nir[:, mid]))
     body = b"".join(parts) + bytes(24)                      # footer: 24 reserved bytes + CRC
     packet = body + struct.pack("<Q", crc64_xz(body))
     assert len(packet) == PACKET_BYTES
     return packet
-
-
-def signal_counts(true_mm):
-    r_m = true_mm / 1000.0
-    return np.clip(np.rint(2e5 / r_m ** 2), 1, 65535).astype(np.uint16)
 
 
 # ---------------------------------------------------------------- Ethernet / IPv4 / UDP / pcap
@@ -357,16 +399,21 @@ def pcap_record(ts_ns, frame_bytes):
     return struct.pack("<IIII", sec, usec, len(frame_bytes), len(frame_bytes)) + frame_bytes
 
 
-def write_pcap(path, meta, frames, rng, sigma0, slope, hidden):
+def write_pcap(path, meta, frames, rng, channel_rng, sigma0, slope, hidden):
+    """rng: the range noise; channel_rng: SIGNAL, NEAR_IR and detection (their own stream, so that
+    a seed gives the same range noise whichever channels are drawn)."""
     true_mm, cos_incidence = true_ranges_mm(meta)
-    signal = signal_counts(true_mm)
+    radiometry = Radiometry(true_mm, cos_incidence)
     ident = 0
     with open(path, "wb") as f:
         f.write(pcap_global_header())
         for frame in range(frames):
-            ranges = measured_ranges_mm(true_mm, cos_incidence, rng, sigma0, slope, hidden, frame)
+            ranges = measured_ranges_mm(true_mm, cos_incidence, radiometry, rng, sigma0, slope, hidden, frame)
+            signal, refl, nir = measured_channels(radiometry, channel_rng)
+            lost = ~hidden.detected(radiometry, channel_rng)
+            ranges[lost], signal[lost], refl[lost] = 0, 0, 0
             for first_mid in range(0, W, CPP):
-                packet = lidar_packet(frame, first_mid, ranges, signal)
+                packet = lidar_packet(frame, first_mid, ranges, signal, refl, nir)
                 f.write(pcap_record(column_timestamp_ns(frame, first_mid), udp_frame(packet, ident)))
                 ident += 1
     return ident
@@ -380,6 +427,9 @@ def parse_args():
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--sigma0", type=float, default=0.010, help="range noise at 0 m, metres")
     p.add_argument("--slope", type=float, default=0.0014, help="range noise growth, metres per metre")
+    p.add_argument("--snr-k", type=float, default=0.0, help="E2: k, metres x sqrt(photons)")
+    p.add_argument("--detect-threshold", type=float, default=0.0, help="E5: S_th, photons (0: off)")
+    p.add_argument("--detect-width", type=float, default=0.3, help="E5: logistic width in ln S")
     p.add_argument("--divergence", type=float, default=0.0, help="E4: beam divergence (FWHM), rad")
     p.add_argument("--beam-offset-sigma", type=float, default=0.0, help="E10: per-beam offsets' sd, m")
     p.add_argument("--beam-scale-sigma", type=float, default=0.0, help="E10: per-beam scales' sd")
@@ -401,8 +451,9 @@ def main():
     rng = np.random.default_rng(args.seed)
     hidden = Hidden(args)
     with open(os.path.join(args.out_dir, "truth.json"), "w") as f:
-        json.dump(hidden.truth(), f, indent=1)
-    n = write_pcap(os.path.join(args.out_dir, "capture.pcap"), meta, args.frames, rng,
+        json.dump({**hidden.truth(), "radiometry": Radiometry.truth()}, f, indent=1)
+    channel_rng = np.random.default_rng([args.seed, 1])
+    n = write_pcap(os.path.join(args.out_dir, "capture.pcap"), meta, args.frames, rng, channel_rng,
                    args.sigma0, args.slope, hidden)
     print("scene: scene.gltf")
     print(f"wrote scene.gltf, pose.tum, metadata.json, capture.pcap ({n} lidar packets of "

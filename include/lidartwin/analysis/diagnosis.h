@@ -4,6 +4,7 @@
 // table, and the candidates ranked by the improvement in BIC, with a likelihood-ratio test and the
 // failing regions each one repairs. Forward stepwise: the best is kept and the others refitted
 // given it while the improvement stays significant, so two hidden effects are both found.
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,6 +39,9 @@ struct ParameterMisfit {
   Candidate refit;  // effect_json: the whole effect with the refitted values
   std::vector<std::pair<std::string, double>> old_values;
   size_t index = 0;  // its place in the profile's chain
+  // What the refit was judged on: "range" (the pixel likelihood, as the candidates are) or "signal"
+  // (the radiometry, by least squares in ln SIGNAL: refit_radiometry).
+  std::string channel = "range";
 };
 
 // The round's best candidate, passed over because it gains nothing once the misfit's strongest
@@ -83,6 +87,18 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
                    const DiagnoseOptions& options = {});
 
 nlohmann::json diagnosis_json(const Diagnosis& diagnosis);
+
+// The profile's radiometry refitted to the measured channels (lidar-physics.md 2.2): its gain K and
+// near-field overlap g(r) (r0, p) to SIGNAL by Poisson quasi-likelihood, its ambient level to
+// NEAR_IR by least squares. A capture from another unit or generator has its own; every
+// signal-driven effect is judged against the expected signal, so the diagnosis and `fit` refit
+// these first. None when the profile has no radiometry, the capture neither channel, or no part is
+// significant (options' alpha and min_delta_bic) and moves its channel by 2 % RMS or more.
+std::optional<ParameterMisfit> refit_radiometry(const PixelTable& table, const EffectChain& chain,
+                                                const DiagnoseOptions& options = {});
+
+// The chain with a refitted effect in its place.
+EffectChain with_refit(const EffectChain& chain, const ParameterMisfit& refit);
 
 // The effects the diagnosis can fit (registry names).
 std::vector<std::string> fittable_effects();
