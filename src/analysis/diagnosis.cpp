@@ -97,7 +97,7 @@ double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const Eff
     Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
     if (adjust) adjust->apply(i, p);
     const RangeModel model = range_model(p, t.ideal_range_m[i], t.step_m[i], t.window_max_m[i]);
-    nll += score_pixel(model, t.range_m[i], 0.5).nll;
+    nll += pixel_nll(model, t.range_m[i]);
   }
   return nll;
 }
@@ -243,9 +243,16 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
       [](const std::vector<double>& v, std::vector<double>&, void* d) { return (*static_cast<Data*>(d)->f)(v); },
       &data);
   double best = base_nll;
-  try {
-    opt.optimize(x, best);
-  } catch (const std::exception&) {  // roundoff-limited stops keep the best point found
+  // A fit that runs out of evaluations is started again from where it got to (a fresh trust region
+  // around it): BOBYQA's first model can stall far from a nonlinear optimum (a warm-up's time
+  // constant), and a rerun costs only where the first run did not converge.
+  for (int run = 0; run < 3; ++run) {
+    nlopt::result result = nlopt::FAILURE;
+    try {
+      result = opt.optimize(x, best);
+    } catch (const std::exception&) {  // roundoff-limited stops keep the best point found
+    }
+    if (result != nlopt::MAXEVAL_REACHED) break;
   }
   Candidate c;
   c.effect = spec.effect;

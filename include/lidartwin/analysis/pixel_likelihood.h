@@ -49,6 +49,8 @@ double partner_share(const RangeModel& model);
 // A return at measured_range_m (a multiple of step_m), or a miss (measured_range_m == 0).
 // pit_draw in [0, 1) spreads the PIT across the measured range bin (lidar-physics.md 3.2).
 PixelScore score_pixel(const RangeModel& model, double measured_range_m, double pit_draw);
+// score_pixel's nll alone (what the fits evaluate), without the moments and the PIT.
+double pixel_nll(const RangeModel& model, double measured_range_m);
 
 // The mean and variance of the NLL a pixel would have if the model were true: summed over pixels,
 // they say what NLL to expect and how far from it the measured NLL may fall by chance.
