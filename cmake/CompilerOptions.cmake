@@ -21,7 +21,9 @@ if(LIDARTWIN_SANITIZE)
   add_link_options(-fsanitize=address,undefined)
 endif()
 if(LIDARTWIN_TSAN)
-  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+  # -O1 (TSan's recommendation) and line tables: the TSan build compiles most modules again in
+  # tools/test, and its reports need only file:line.
+  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer -O1 -g1)
   add_link_options(-fsanitize=thread)
   # GCC 12 warns that TSan does not model std::atomic_thread_fence, which Asio's handler
   # completions use; the io_context queues handlers under a mutex, which TSan does see.

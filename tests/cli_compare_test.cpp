@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <set>
 #include <string>
 #include <vector>
@@ -271,8 +270,50 @@ fs::path profile_with(const nlohmann::json& effect, const std::string& name) {
   return path;
 }
 
+// The error falls (issue: "after fit, the NLL per pixel on held-out frames is within noise of the
+// generator's own"): `fit --add` the diagnosis' selected effects on the first `fit_frames` frames
+// of the capture (`inputs`), then `compare` the base profile and the fitted one on the frames after
+// them. Returns the held-out report's waterfall, base first.
+nlohmann::json held_out_waterfall(const std::string& inputs, const std::string& base, const nlohmann::json& diagnosis,
+                                  int fit_frames, const fs::path& dir) {
+  std::string added;
+  for (const auto& c : diagnosis["selected"]) added += " --add " + c["effect"].get<std::string>();
+  if (added.empty()) return nlohmann::json::array();
+  const fs::path fitted = dir / "fitted.json";
+  const CliRun fit = lidartwin("fit" + inputs + " --frames " + std::to_string(fit_frames) + " --profile " + base +
+                               added + " --out " + fitted.string());
+  EXPECT_EQ(fit.code, 0) << fit.err;
+  const CliRun compared =
+      lidartwin("compare" + inputs + " --skip-frames " + std::to_string(fit_frames) + " --no-plots --profile " + base +
+                " --profile " + fitted.string() + " --out " + (dir / "held_out").string());
+  EXPECT_EQ(compared.code, 0) << compared.err;
+  return read_json(dir / "held_out" / "report.json")["waterfall"];
+}
+
+// Standard errors by which a waterfall step's NLL per pixel exceeds what its own model expects.
+double excess_se(const nlohmann::json& step) {
+  return (step["nll_per_pixel"].get<double>() - step["nll_expected"].get<double>()) / step["nll_se"].get<double>();
+}
+
+// The base profile misfits the held-out frames; the fitted one scores what its model expects,
+// within noise. (Regions may still fail where an effect fitted on fewer frames is off in its
+// details: the count is printed.)
+void expect_error_falls(const nlohmann::json& waterfall) {
+  ASSERT_EQ(waterfall.size(), 2u) << waterfall.dump(1);
+  const auto& before = waterfall[0];
+  const auto& after = waterfall[1];
+  std::printf("  held-out NLL/pixel: %s %.4f (%+.1f SE), fitted %.4f (%+.1f SE), expected %.4f; %d regions fail\n",
+              before["profile"].get<std::string>().c_str(), before["nll_per_pixel"].get<double>(), excess_se(before),
+              after["nll_per_pixel"].get<double>(), excess_se(after), after["nll_expected"].get<double>(),
+              after["failing_regions"].get<int>());
+  EXPECT_GT(excess_se(before), 5.0);
+  EXPECT_LT(std::abs(excess_se(after)), 4.0);
+}
+
 // A capture recorded with an effect the compared profile lacks: the report shows that effect's
-// fingerprint (lidar-physics.md's diagnostic matrix), and --diagnose names it.
+// fingerprint (lidar-physics.md's diagnostic matrix), and --diagnose names it; with the diagnosis,
+// report["held_out"] is the waterfall of the selected effects fitted on frames 0-9 and scored on
+// frames 10-19.
 nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::string& name, const fs::path& out_dir,
                                      bool diagnose = true) {
   const fs::path capture = out_dir / "capture";
@@ -284,7 +325,12 @@ nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::st
       lidartwin("compare --capture " + capture.string() + " --scene " + kHall + " --profile " + os1_64() +
                 " --no-plots" + (diagnose ? " --diagnose" : "") + " --out " + (out_dir / "report").string());
   EXPECT_EQ(r.code, 0) << r.err;
-  return read_json(out_dir / "report" / "report.json");
+  nlohmann::json report = read_json(out_dir / "report" / "report.json");
+  if (diagnose) {
+    report["held_out"] = held_out_waterfall(" --capture " + capture.string() + " --scene " + kHall, os1_64(),
+                                            report["diagnosis"], 10, out_dir);
+  }
+  return report;
 }
 
 // E4: the footprint's spread grows with r * tan(incidence): the spread ratio and the outlier rate
@@ -325,6 +371,7 @@ TEST_F(Compare, AHiddenIncidenceEffectShowsAsSpreadGrowingWithIncidence) {
   EXPECT_LE(params["bias_factor"]["ci95"][0].get<double>(), 0.0);
   EXPECT_GE(params["bias_factor"]["ci95"][1].get<double>(), 0.0);
   EXPECT_FALSE(diagnosis["ranked"][0]["repairs"].empty());
+  expect_error_falls(report["held_out"]);
 }
 
 // E10: per-beam range offsets: the worst regions are single beams, each with its own bias; the
@@ -367,6 +414,7 @@ TEST_F(Compare, AHiddenWarmUpDriftShowsAsBiasFallingWithTime) {
     EXPECT_LE(params[name]["ci95"][0].get<double>(), truth) << name << " " << params[name].dump();
     EXPECT_GE(params[name]["ci95"][1].get<double>(), truth) << name << " " << params[name].dump();
   }
+  expect_error_falls(report["held_out"]);
 }
 
 // fit, then the waterfall: the profile with the missing effect added and fitted on the first 10
@@ -396,9 +444,7 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   const nlohmann::json report = read_json(held_out / "report.json");
   EXPECT_EQ(report["inputs"]["skipped_frames"], 10);
   ASSERT_EQ(report["waterfall"].size(), 2u);
-  const auto excess = [](const nlohmann::json& w) {
-    return (w["nll_per_pixel"].get<double>() - w["nll_expected"].get<double>()) / w["nll_se"].get<double>();
-  };
+  const auto excess = excess_se;
   const auto& before = report["waterfall"][0];
   const auto& after = report["waterfall"][1];
   EXPECT_EQ(before["profile"], "os1-64");
@@ -431,6 +477,7 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   for (const auto& [name, truth] : {std::pair{"threshold_photons", 6.0}, std::pair{"width", 0.3}}) {
     EXPECT_NEAR(params[name]["value"].get<double>(), truth, 0.03 * truth) << name << " " << params[name].dump();
   }
+  expect_error_falls(report["held_out"]);
 }
 
 // E8: beside the hall's retroreflective panels, in their columns, returns at the panel's range and
@@ -449,6 +496,7 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenRetroreflectorHaloAndFitsIt) {
                 ci[1].get<double>(), truth);
     EXPECT_NEAR(params[name]["value"].get<double>(), truth, 0.1 * truth) << name << " " << params[name].dump();
   }
+  expect_error_falls(report["held_out"]);
 }
 
 // Parameter misfit: the profile has the right effect with a wrong value (incidence with half the
@@ -534,19 +582,34 @@ void expect_fitted(const nlohmann::json& candidate, const std::vector<std::pair<
 
 // E2 and E3, each hidden alone: named first and fitted.
 TEST_F(Compare, TheDiagnosisNamesHiddenSignalDependentPrecisionAndRangeWalk) {
-  const nlohmann::json e2 =
-      compare_hidden_effect({{"name", "signal_precision"}, {"k_m", 0.2}}, "e2", out("e2"))["diagnosis"];
+  const nlohmann::json e2_report = compare_hidden_effect({{"name", "signal_precision"}, {"k_m", 0.2}}, "e2", out("e2"));
+  const nlohmann::json& e2 = e2_report["diagnosis"];
   ASSERT_FALSE(e2["selected"].empty()) << e2.dump(1);
   EXPECT_EQ(e2["selected"][0]["effect"], "signal_precision");
   EXPECT_EQ(e2["selected"][0]["catalogue"], "E2");
   expect_fitted(e2["selected"][0], {{"k_m", 0.2}}, 0.02);
+  // Incidence helps alone (the spread grows where the signal falls) but explains nothing given E2,
+  // while E2 still gains given it: said so, and E2 kept.
+  bool incidence_shared = false;
+  for (const auto& shared : e2["shared"]) {
+    if (shared["effect"] != "incidence") continue;
+    incidence_shared = true;
+    EXPECT_EQ(shared["with"], "signal_precision");
+    EXPECT_GT(shared["delta_bic_alone"].get<double>(), 10.0);
+    EXPECT_LT(shared["delta_bic_given"].get<double>(), 10.0);
+    EXPECT_GT(shared["with_delta_bic_given"].get<double>(), 10.0);
+    EXPECT_NE(shared["sentence"].get<std::string>().find("so signal_precision is kept"), std::string::npos);
+  }
+  EXPECT_TRUE(incidence_shared) << e2["shared"].dump(1);
+  expect_error_falls(e2_report["held_out"]);
 
-  const nlohmann::json e3 =
-      compare_hidden_effect({{"name", "range_walk"}, {"walk_m", 0.01}}, "e3", out("e3"))["diagnosis"];
+  const nlohmann::json e3_report = compare_hidden_effect({{"name", "range_walk"}, {"walk_m", 0.01}}, "e3", out("e3"));
+  const nlohmann::json& e3 = e3_report["diagnosis"];
   ASSERT_FALSE(e3["selected"].empty()) << e3.dump(1);
   EXPECT_EQ(e3["selected"][0]["effect"], "range_walk");
   EXPECT_EQ(e3["selected"][0]["catalogue"], "E3");
   expect_fitted(e3["selected"][0], {{"walk_m", 0.01}}, 0.05);
+  expect_error_falls(e3_report["held_out"]);
 }
 
 // E6: footprints across the hall's board edges give returns between or at the other surface.
@@ -568,6 +631,7 @@ TEST_F(Compare, TheDiagnosisNamesHiddenMixedPixelsAtDepthEdges) {
   const auto& divergence = diagnosis["selected"][0]["params"]["divergence_rad"];
   EXPECT_LE(divergence["ci95"][0].get<double>(), 0.004) << divergence.dump();
   EXPECT_GE(divergence["ci95"][1].get<double>(), 0.004) << divergence.dump();
+  expect_error_falls(report["held_out"]);
 }
 
 // Two hidden effects at once (E4 and E12): the stepwise search keeps both, and nothing else.
@@ -596,6 +660,8 @@ TEST_F(Compare, TheDiagnosisFindsTwoHiddenEffectsTogether) {
     if (c["effect"] == "drift") expect_fitted(c, {{"warmup_offset_m", 0.03}, {"warmup_time_s", 0.5}}, 0.05);
     if (c["effect"] == "incidence") expect_fitted(c, {{"divergence_rad", 0.00227}}, 0.05);
   }
+  expect_error_falls(
+      held_out_waterfall(" --capture " + capture.string() + " --scene " + kHall, os1_64(), diagnosis, 10, dir));
 }
 
 // The null case: the profile that made the capture; no candidate improves BIC.
@@ -717,22 +783,24 @@ struct IndependentDiagnosis {
   nlohmann::json diagnosis;
   nlohmann::json truth;
 };
-// also: what a test does next with the capture (its directory) before it is removed.
-IndependentDiagnosis diagnose_independent(const std::string& name, const std::string& hidden, int seed = 2,
-                                          const std::function<void(const fs::path&)>& also = nullptr) {
+// On frames 0-5; and the error falls on held-out frames: the selected effects fitted on the same
+// frames (the radiometry refitted first, as the diagnosis does) and scored on frames 6-8, which
+// the generator draws after them (the first six are the same with or without them).
+IndependentDiagnosis diagnose_independent(const std::string& name, const std::string& hidden, int seed = 2) {
   const fs::path dir = fs::path(testing::TempDir()) / ("independent_" + name + "_" + std::to_string(getpid()));
   fs::remove_all(dir);
   EXPECT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                         " --frames 6 --seed " + std::to_string(seed) + " " + hidden + " > /dev/null")
+                         " --frames 9 --seed " + std::to_string(seed) + " " + hidden + " > /dev/null")
                             .c_str()),
             0);
-  const CliRun r = lidartwin("compare --capture " + (dir / "capture.pcap").string() + " --metadata " +
+  const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
                              (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
-                             " --pose " + (dir / "pose.tum").string() +
-                             " --no-plots --diagnose --profile os1-32-paper" + " --out " + (dir / "report").string());
+                             " --pose " + (dir / "pose.tum").string();
+  const CliRun r = lidartwin("compare" + inputs + " --frames 6 --no-plots --diagnose --profile os1-32-paper --out " +
+                             (dir / "report").string());
   EXPECT_EQ(r.code, 0) << r.err;
   IndependentDiagnosis out{read_json(dir / "report" / "report.json")["diagnosis"], read_json(dir / "truth.json")};
-  if (also) also(dir);
+  expect_error_falls(held_out_waterfall(inputs, "os1-32-paper", out.diagnosis, 6, dir));
   fs::remove_all(dir);
   return out;
 }
@@ -743,16 +811,17 @@ void expect_covers(const nlohmann::json& param, double truth, const std::string&
 }
 
 TEST(CompareIndependentCapture, TheDiagnosisNamesAWarmUpDriftTheIndependentGeneratorHid) {
-  // Three parameters, each interval at 95 %: the noise of seed 2 puts the warm-up offset 0.1 mm
-  // (2.6 standard errors) below 30 mm, outside its interval; seeds 3 and 4 cover all three.
-  const auto [d, truth] = diagnose_independent("e12", "--drift-mu0 0.03 --drift-tau 0.2", 3);
+  // A warm-up from 30 mm settling at 10 mm (not 0: the held-out frames, 3 to 4.5 time constants
+  // in, must still show the drift). Three parameters, each interval at 95 %: a seed can miss one by
+  // chance (seed 2 put a warm-up from 30 mm to 0 2.6 standard errors out); seed 3 covers all three.
+  const auto [d, truth] = diagnose_independent("e12", "--drift-mu0 0.03 --drift-muinf 0.01 --drift-tau 0.2", 3);
   ASSERT_EQ(d["selected"].size(), 1u) << d.dump(1);
   EXPECT_EQ(d["selected"][0]["effect"], "drift");
   EXPECT_EQ(d["selected"][0]["catalogue"], "E12");
   const auto& p = d["selected"][0]["params"];
-  expect_covers(p["warmup_offset_m"], 0.03, "mu0 - mu_inf");
+  expect_covers(p["warmup_offset_m"], 0.02, "mu0 - mu_inf");
   expect_covers(p["warmup_time_s"], 0.2, "tau");
-  expect_covers(p["offset_m"], 0.0, "mu_inf");
+  expect_covers(p["offset_m"], 0.01, "mu_inf");
   EXPECT_TRUE(d["unexplained"].empty()) << d["unexplained"].dump(1);
 }
 
@@ -803,35 +872,8 @@ void expect_radiometry_refitted(const nlohmann::json& d, const nlohmann::json& t
   }
 }
 
-// And the error falls: `fit --add dropout` on the first 3 frames (the radiometry refitted first, as
-// the diagnosis does), compared on the other 3: the held-out NLL per pixel falls to what the fitted
-// model itself expects, within noise.
 TEST(CompareIndependentCapture, TheDiagnosisRefitsItsRadiometryThenNamesTheSignalDropoutItHid) {
-  const auto fit_and_compare = [](const fs::path& dir) {
-    const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                               (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
-                               " --pose " + (dir / "pose.tum").string();
-    const CliRun fit = lidartwin("fit" + inputs + " --frames 3 --profile os1-32-paper --add dropout --out " +
-                                 (dir / "fitted.json").string());
-    ASSERT_EQ(fit.code, 0) << fit.err;
-    const CliRun held_out =
-        lidartwin("compare" + inputs + " --skip-frames 3 --no-plots --profile os1-32-paper" + " --profile " +
-                  (dir / "fitted.json").string() + " --out " + (dir / "held_out").string());
-    ASSERT_EQ(held_out.code, 0) << held_out.err;
-    const nlohmann::json report = read_json(dir / "held_out" / "report.json");
-    const auto& before = report["waterfall"][0];
-    const auto& after = report["waterfall"][1];
-    const auto excess = [](const nlohmann::json& w) {  // standard errors above what the model expects
-      return (w["nll_per_pixel"].get<double>() - w["nll_expected"].get<double>()) / w["nll_se"].get<double>();
-    };
-    std::printf("  held-out NLL/pixel: paper %.4f (%+.1f SE), fitted %.4f (%+.1f SE)\n",
-                before["nll_per_pixel"].get<double>(), excess(before), after["nll_per_pixel"].get<double>(),
-                excess(after));
-    EXPECT_GT(excess(before), 20.0);
-    EXPECT_LT(std::abs(excess(after)), 4.0);
-    EXPECT_EQ(after["failing_regions"], 0);
-  };
-  const auto [d, truth] = diagnose_independent("e5", "--detect-threshold 150 --detect-width 0.4", 2, fit_and_compare);
+  const auto [d, truth] = diagnose_independent("e5", "--detect-threshold 150 --detect-width 0.4");
   expect_radiometry_refitted(d, truth);
   ASSERT_EQ(d["selected"].size(), 1u) << d.dump(1);
   EXPECT_EQ(d["selected"][0]["effect"], "dropout");

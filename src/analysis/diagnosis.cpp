@@ -367,12 +367,46 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
   }
   d.refitted = current;
   const double corrected_alpha = options.alpha / static_cast<double>(std::max<size_t>(pool.size(), 1));
+  // The last round: its candidates, the effect it kept, and the chain and NLL before that.
+  struct Kept {
+    std::vector<Candidate> fits;
+    Candidate best;
+    EffectChain before;
+    double before_nll = 0.0;
+  };
+  std::optional<Kept> last;
   for (int round = 0; round < options.max_effects && !pool.empty(); ++round) {
     std::vector<Candidate> fits;
     for (const CandidateSpec* spec : pool) fits.push_back(fit(table, rows, Placement{current, {}}, current_nll, *spec));
     std::sort(fits.begin(), fits.end(),
               [](const Candidate& a, const Candidate& b) { return a.delta_bic > b.delta_bic; });
     if (round == 0) d.ranked = fits;
+    // Candidates that helped last round and gain nothing given what it kept explain the same misfit:
+    // each is tested given the other (the kept one refitted given the candidate).
+    if (last) {
+      for (const Candidate& alone : last->fits) {
+        if (alone.effect == last->best.effect || alone.delta_bic < options.min_delta_bic ||
+            alone.p_value > corrected_alpha)
+          continue;
+        const auto now =
+            std::find_if(fits.begin(), fits.end(), [&](const Candidate& c) { return c.effect == alone.effect; });
+        if (now == fits.end() || now->delta_bic >= options.min_delta_bic) continue;
+        const auto spec = std::find_if(candidate_specs().begin(), candidate_specs().end(),
+                                       [&](const CandidateSpec& c) { return c.effect == last->best.effect; });
+        const Candidate kept_given = fit(table, rows, Placement{with_candidate(last->before, alone.effect_json), {}},
+                                         last->before_nll - alone.delta_nll, *spec);
+        SharedMisfit shared{
+            alone.effect, last->best.effect, alone.delta_bic, now->delta_bic, kept_given.delta_bic, {}, ""};
+        shared.sentence = fmt::format(
+            "{} explains the same misfit as {}: delta BIC {:.0f} alone, {:.0f} given {}; {} keeps {:.0f} given {}, {}",
+            alone.effect, last->best.effect, alone.delta_bic, now->delta_bic, last->best.effect, last->best.effect,
+            kept_given.delta_bic, alone.effect,
+            kept_given.delta_bic >= options.min_delta_bic
+                ? fmt::format("so {} is kept", last->best.effect)
+                : fmt::format("so the data cannot tell them apart: {}, the larger, is kept", last->best.effect));
+        d.shared.push_back(std::move(shared));
+      }
+    }
     const Candidate& best = fits.front();
     if (best.delta_bic < options.min_delta_bic || best.p_value > corrected_alpha) break;
     // Weighed against the strongest per-bin pattern of the misfit (unexplained.h), each given the
@@ -421,6 +455,7 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
         break;
       }
     }
+    last = Kept{fits, best, current, current_nll};
     d.selected.push_back(best);
     current = with_candidate(current, best.effect_json);
     current_nll -= best.delta_nll;
@@ -451,6 +486,17 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
     for (const FailingRegion& f : after.failing) still.insert({f.quantity, describe(f.region)});
     for (const FailingRegion& f : misfit.failing) {
       if (!still.count({f.quantity, describe(f.region)})) c.repairs.push_back(f.sentence);
+    }
+  }
+  const auto repairs_of = [&](const std::string& effect) {
+    const auto c =
+        std::find_if(d.ranked.begin(), d.ranked.end(), [&](const Candidate& r) { return r.effect == effect; });
+    return c == d.ranked.end() ? std::set<std::string>{} : std::set<std::string>(c->repairs.begin(), c->repairs.end());
+  };
+  for (SharedMisfit& s : d.shared) {
+    const std::set<std::string> with = repairs_of(s.with);
+    for (const std::string& r : repairs_of(s.effect)) {
+      if (with.count(r)) s.repairs.push_back(r);
     }
   }
   return d;
@@ -559,8 +605,19 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
          {"pattern_delta_bic_given_effect", n.pattern_delta_bic_given_effect},
          {"sentence", n.sentence}});
   }
-  return {{"verdict", d.verdict}, {"not_selected", not_selected}, {"ranked", ranked},          {"selected", selected},
-          {"pixels", d.pixels},   {"unexplained", unexplained},   {"parameter_misfit", refits}};
+  nlohmann::json shared = nlohmann::json::array();
+  for (const SharedMisfit& s : d.shared) {
+    shared.push_back({{"effect", s.effect},
+                      {"with", s.with},
+                      {"delta_bic_alone", s.delta_bic_alone},
+                      {"delta_bic_given", s.delta_bic_given},
+                      {"with_delta_bic_given", s.with_delta_bic_given},
+                      {"repairs", s.repairs},
+                      {"sentence", s.sentence}});
+  }
+  return {{"verdict", d.verdict},       {"not_selected", not_selected}, {"shared", shared},
+          {"ranked", ranked},           {"selected", selected},         {"pixels", d.pixels},
+          {"unexplained", unexplained}, {"parameter_misfit", refits}};
 }
 
 }  // namespace lidartwin

@@ -57,12 +57,26 @@ struct NotSelected {
   std::string sentence;
 };
 
+// Two candidates that explain the same misfit (issue 11: "say so and test each given the other"):
+// `effect` helped alone but gains nothing once `with` (the round's kept effect) is in the chain;
+// `with` is refitted given `effect` to tell whether it explains more (then it is rightly kept) or
+// the data cannot tell them apart (each is nothing given the other: the larger is kept).
+struct SharedMisfit {
+  std::string effect, with;
+  double delta_bic_alone = 0.0;       // effect's, in the round before `with` was kept
+  double delta_bic_given = 0.0;       // effect's given `with`
+  double with_delta_bic_given = 0.0;  // `with`'s given effect
+  std::vector<std::string> repairs;   // failing regions both repair (first-round candidates)
+  std::string sentence;
+};
+
 struct Diagnosis {
   std::string verdict;                            // "no missing effect" or "missing effect"
   std::vector<ParameterMisfit> parameter_misfit;  // the profile's own effects refitted, in chain order
   std::vector<Candidate> ranked;                  // first round, best first
   std::vector<Candidate> selected;                // kept, in the order added
   std::vector<NotSelected> not_selected;
+  std::vector<SharedMisfit> shared;
   // What still fails with the selected effects added, and the features it follows.
   std::vector<UnexplainedMisfit> unexplained;
   size_t pixels = 0;     // pixels the fits used

@@ -8,7 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <regex>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -18,6 +18,8 @@
 #include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
+
+#include "e2e/support/log_port.h"
 
 namespace lidartwin::e2e {
 
@@ -97,13 +99,10 @@ class Daemon {
   }
 
   void wait_until_ready(std::chrono::seconds timeout) {
-    const std::regex listening("answering on http://[0-9.]+:([0-9]+)/");
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
-      std::smatch match;
-      const std::string text = log();
-      if (std::regex_search(text, match, listening)) {
-        http_port_ = std::stoi(match[1]);
+      if (const std::optional<int> port = port_after(log(), "answering on http://")) {
+        http_port_ = *port;
         return;
       }
       int status = 0;

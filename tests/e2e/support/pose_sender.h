@@ -9,12 +9,14 @@
 #include <array>
 #include <cstdint>
 #include <cstring>
-#include <regex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
+
+#include "e2e/support/log_port.h"
 
 namespace lidartwin::e2e {
 
@@ -61,10 +63,9 @@ class PoseSender {
 
 // The UDP port the daemon listens on for poses, from its log line.
 inline uint16_t pose_udp_port(const std::string& log) {
-  std::smatch match;
-  static const std::regex line(R"(live poses: listening on udp [0-9.]+:([0-9]+))");
-  if (!std::regex_search(log, match, line)) throw std::runtime_error("no pose listening line in the log:\n" + log);
-  return static_cast<uint16_t>(std::stoi(match[1].str()));
+  const std::optional<int> port = port_after(log, "live poses: listening on udp ");
+  if (!port) throw std::runtime_error("no pose listening line in the log:\n" + log);
+  return static_cast<uint16_t>(*port);
 }
 
 }  // namespace lidartwin::e2e
