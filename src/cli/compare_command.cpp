@@ -131,6 +131,16 @@ int run_compare(const CompareFlags& flags) {
   }
   if (diagnosis) {
     std::printf("diagnosis on %zu pixels: %s\n", diagnosis->pixels, diagnosis->verdict.c_str());
+    for (const ParameterMisfit& m : diagnosis->parameter_misfit) {
+      std::string changes;
+      for (const FittedParameter& p : m.refit.params) {
+        const auto old =
+            std::find_if(m.old_values.begin(), m.old_values.end(), [&](const auto& o) { return o.first == p.name; });
+        changes += fmt::format(" {} {:.4g} -> {:.4g}", p.name, old == m.old_values.end() ? 0.0 : old->second, p.value);
+      }
+      std::printf("  refitted %s (%s channel): delta BIC %+.1f;%s\n", m.refit.effect.c_str(), m.channel.c_str(),
+                  m.refit.delta_bic, changes.c_str());
+    }
     for (size_t i = 0; i < std::min<size_t>(diagnosis->ranked.size(), 5); ++i) {
       const Candidate& c = diagnosis->ranked[i];
       std::string params;
@@ -139,6 +149,9 @@ int run_compare(const CompareFlags& flags) {
                   c.p_value, params.c_str());
     }
     for (const Candidate& c : diagnosis->selected) std::printf("  selected: %s\n", c.effect.c_str());
+    for (const SharedMisfit& shared : diagnosis->shared) std::printf("  %s\n", shared.sentence.c_str());
+    for (const NotSelected& n : diagnosis->not_selected) std::printf("  %s\n", n.sentence.c_str());
+    for (const UnexplainedMisfit& u : diagnosis->unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
   }
   if (waterfall.size() > 1) {
     std::printf("the error across the profiles (same pixels):\n  %-24s %12s %10s %10s %8s %10s %8s\n", "profile",
