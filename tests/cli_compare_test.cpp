@@ -609,6 +609,11 @@ TEST_F(Compare, TheDiagnosisNamesHiddenSignalDependentPrecisionAndRangeWalk) {
   EXPECT_EQ(e3["selected"][0]["effect"], "range_walk");
   EXPECT_EQ(e3["selected"][0]["catalogue"], "E3");
   expect_fitted(e3["selected"][0], {{"walk_m", 0.01}}, 0.05);
+  for (const auto& [name, truth] : {std::pair{"walk_m", 0.01}, std::pair{"retro_offset_m", 0.0}}) {
+    const auto& ci = e3["selected"][0]["params"][name]["ci95"];  // 95 % intervals cover the truth
+    EXPECT_LE(ci[0].get<double>(), truth) << name << " " << ci.dump();
+    EXPECT_GE(ci[1].get<double>(), truth) << name << " " << ci.dump();
+  }
   expect_error_falls(e3_report["held_out"]);
 }
 
