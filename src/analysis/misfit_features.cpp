@@ -15,6 +15,7 @@ RangeModel model_of(const PixelTable& t, size_t i) {
   m.outlier_mix = f64(t.outlier_mix[i]);
   m.partner_mix = f64(t.partner_mix[i]);
   m.partner_offset_m = f64(t.partner_offset_m[i]);
+  m.partner_sigma_m = f64(t.partner_sigma_m[i]);
   m.window_min_m = f64(t.window_min_m[i]);
   m.window_max_m = f64(t.window_max_m[i]);
   m.step_m = f64(t.step_m[i]);
@@ -22,12 +23,17 @@ RangeModel model_of(const PixelTable& t, size_t i) {
 }
 
 double expected_outlier_share(const PixelTable& t, size_t i) {
-  // Returns from an edge partner (E6) a depth step away fall outside the pixel's own Gaussian too.
-  const double partner = std::abs(f64(t.partner_offset_m[i])) > kOutlierZ * f64(t.predicted_sigma_m[i])
-                             ? partner_share(model_of(t, i))
-                             : 0.0;
-  const double pi = std::min(f64(t.outlier_mix[i]) + partner, 1.0);
-  return pi + (1.0 - pi) * 2.0 * normal_cdf(-kOutlierZ);
+  // Returns from an edge partner (E6) a depth step away, or a halo's (E8) at a retroreflector's
+  // range, fall outside the pixel's own Gaussian too: the share of that component beyond the bounds.
+  const RangeModel m = model_of(t, i);
+  const double share = partner_share(m);
+  double partner_out = 0.0;
+  if (share > 0.0) {
+    const double bound = kOutlierZ * m.sigma_m, sigma = m.partner_sigma();
+    partner_out = 1.0 - normal_interval((-bound - m.partner_offset_m) / sigma, (bound - m.partner_offset_m) / sigma);
+  }
+  const double pi = std::clamp(m.outlier_mix, 0.0, 1.0);
+  return pi + (1.0 - pi) * ((1.0 - share) * 2.0 * normal_cdf(-kOutlierZ) + share * partner_out);
 }
 
 int Feature::bin(double v) const {

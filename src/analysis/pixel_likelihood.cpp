@@ -12,21 +12,28 @@ constexpr double kSqrtHalf = 0.70710678118654752440;
 constexpr double kWholeZ = 8.5;   // Phi(-8.5) = 9.5e-18: below half an ulp of 1
 constexpr double kNarrowZ = 0.1;  // interval width, in sigmas, up to which the midpoint rule is used
 
-// The probability mass of the window under the Gaussian centred at mean.
-double window_mass(const RangeModel& m, double mean) {
-  return normal_interval((m.window_min_m - mean) / m.sigma_m, (m.window_max_m - mean) / m.sigma_m);
+// The probability mass of the window under the Gaussian centred at mean (with sigma_m, or sigma).
+double window_mass(const RangeModel& m, double mean, double sigma) {
+  return normal_interval((m.window_min_m - mean) / sigma, (m.window_max_m - mean) / sigma);
 }
+double window_mass(const RangeModel& m, double mean) { return window_mass(m, mean, m.sigma_m); }
 
 // The probability of [lo, hi] under the Gaussian part truncated to the window: the pixel's own
-// surface and, with weight partner_mix, its edge partner's (E6), the mixture renormalized by the
-// mass it has inside the window (a partner inside it may be all that is detected).
+// surface and, with weight partner_mix, its edge partner's (E6) or a halo's (E8), the mixture
+// renormalized by the mass it has inside the window (a partner inside it may be all that is
+// detected).
 double gaussian_interval(const RangeModel& m, double lo, double hi, double gaussian_mass) {
-  const auto interval = [&](double mean) { return normal_interval((lo - mean) / m.sigma_m, (hi - mean) / m.sigma_m); };
-  if (m.partner_mix <= 0.0) return gaussian_mass > 0.0 ? interval(m.mean_m) / gaussian_mass : 0.0;
-  const double partner_mean = m.mean_m + m.partner_offset_m;
-  const double mass = (1.0 - m.partner_mix) * gaussian_mass + m.partner_mix * window_mass(m, partner_mean);
+  const auto interval = [&](double mean, double sigma) {
+    return normal_interval((lo - mean) / sigma, (hi - mean) / sigma);
+  };
+  if (m.partner_mix <= 0.0) return gaussian_mass > 0.0 ? interval(m.mean_m, m.sigma_m) / gaussian_mass : 0.0;
+  const double partner_mean = m.mean_m + m.partner_offset_m, partner_sigma = m.partner_sigma();
+  const double mass =
+      (1.0 - m.partner_mix) * gaussian_mass + m.partner_mix * window_mass(m, partner_mean, partner_sigma);
   if (mass <= 0.0) return 0.0;
-  return ((1.0 - m.partner_mix) * interval(m.mean_m) + m.partner_mix * interval(partner_mean)) / mass;
+  return ((1.0 - m.partner_mix) * interval(m.mean_m, m.sigma_m) +
+          m.partner_mix * interval(partner_mean, partner_sigma)) /
+         mass;
 }
 
 // The CDF of the returned range (before quantization): the truncated Gaussian part mixed with the
@@ -101,6 +108,9 @@ RangeModel range_model(const Prediction& prediction, double ideal_range_m, doubl
   m.outlier_mix = prediction.outlier_mix;
   m.partner_mix = prediction.partner_mix;
   m.partner_offset_m = prediction.partner_offset_m;
+  if (prediction.partner_extra_variance_m2 != 0.0) {
+    m.partner_sigma_m = std::sqrt(std::max(variance + prediction.partner_extra_variance_m2, 1e-10));
+  }
   m.window_min_m = prediction.window_min_m;
   m.window_max_m = std::min(prediction.window_max_m, reach_m);
   return m;
@@ -109,7 +119,7 @@ RangeModel range_model(const Prediction& prediction, double ideal_range_m, doubl
 double partner_share(const RangeModel& m) {
   if (m.partner_mix <= 0.0 || m.sigma_m <= 0.0) return 0.0;
   const double own = (1.0 - m.partner_mix) * window_mass(m, m.mean_m);
-  const double partner = m.partner_mix * window_mass(m, m.mean_m + m.partner_offset_m);
+  const double partner = m.partner_mix * window_mass(m, m.mean_m + m.partner_offset_m, m.partner_sigma());
   return own + partner > 0.0 ? partner / (own + partner) : 0.0;
 }
 
@@ -203,12 +213,14 @@ NllMoments expected_nll(const RangeModel& m) {
     }
     variance = std::max(second - entropy * entropy, 0.0);
   }
-  // The edge partner's component (E6), the same Gaussian partner_offset_m away, taken as apart
+  // The partner's component (E6's edge partner, E8's halo), partner_offset_m away, taken as apart
   // from the pixel's own (its offset is a depth step, many sigmas): choosing between the two adds
-  // their mixing entropy, and the choice's own spread to the variance.
+  // their mixing entropy, and the choice's own spread to the variance. A component with its own
+  // sigma costs ln(sigma' / sigma) more per return (bins narrow against both).
   const double pe = std::clamp(m.partner_mix, 0.0, 1.0);
-  if (pe > 0.0 && pe < 1.0) {
-    const double own = -std::log1p(-pe), partner = -std::log(pe);
+  if (pe > 0.0) {
+    const double wider = std::log(m.partner_sigma() / m.sigma_m);
+    const double own = pe < 1.0 ? -std::log1p(-pe) : 0.0, partner = -std::log(pe) + wider;
     const double mixing = (1.0 - pe) * own + pe * partner;
     variance += (1.0 - pe) * own * own + pe * partner * partner - mixing * mixing;
     entropy += mixing;

@@ -208,6 +208,7 @@ void PixelTable::resize(size_t n) {
                   &outlier_mix,
                   &partner_mix,
                   &partner_offset_m,
+                  &partner_sigma_m,
                   &expected_signal,
                   &expected_near_ir,
                   &window_min_m,
@@ -256,6 +257,7 @@ void PixelTable::set_prediction(size_t i, const Prediction& prediction, const Ra
   outlier_mix[i] = static_cast<float>(model.outlier_mix);
   partner_mix[i] = static_cast<float>(model.partner_mix);
   partner_offset_m[i] = static_cast<float>(model.partner_offset_m);
+  partner_sigma_m[i] = static_cast<float>(model.partner_sigma_m);
   expected_signal[i] = static_cast<float>(prediction.signal_photons);
   expected_near_ir[i] = static_cast<float>(prediction.near_ir_photons);
   window_min_m[i] = static_cast<float>(model.window_min_m);

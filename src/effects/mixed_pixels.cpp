@@ -157,6 +157,7 @@ class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters
     const double fraction = params().second_fraction;
     prediction.partner_mix = s->probability_w_in(std::nextafter(t, 1.0), 0.5);
     prediction.partner_offset_m = step;
+    prediction.partner_extra_variance_m2 = 0.0;  // the same Gaussian (a halo's before it is replaced)
     // Partner first: the pixel's echo second when (1 - w) >= fraction; pixel first: the partner's
     // second when w partner / full >= fraction.
     const double partner_second_from = fraction * s->full / s->partner;

@@ -72,9 +72,9 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
   void predict(const IdealReturn& ideal, const ColumnContext& context, Prediction& prediction) const override {
     const double lower = static_cast<double>(static_cast<float>(params().min_m));
     const double upper = static_cast<double>(std::min(static_cast<float>(params().max_m), context.max_wire_range_m));
-    const auto inside = [&](double mean) {
-      if (prediction.variance_m2 <= 0.0) return (mean >= lower && mean <= upper) ? 1.0 : 0.0;
-      const double s = std::sqrt(prediction.variance_m2);
+    const auto inside = [&](double mean, double variance) {
+      if (variance <= 0.0) return (mean >= lower && mean <= upper) ? 1.0 : 0.0;
+      const double s = std::sqrt(variance);
       const double a = (lower - mean) / s, b = (upper - mean) / s;
       // Far inside the window the difference below is exactly 1 (Phi(-8.5) is below half an ulp of
       // 1); the analysis predicts millions of pixels, and erfc is its costliest step.
@@ -82,8 +82,10 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
       return normal_cdf(b) - normal_cdf(a);
     };
     const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
-    const double partner = prediction.partner_mix;  // E6: a return from the edge partner's surface
-    prediction.p_detect *= (1.0 - partner) * inside(mean) + partner * inside(mean + prediction.partner_offset_m);
+    const double partner = prediction.partner_mix;  // E6, E8: a return from the edge partner's surface, a halo's
+    prediction.p_detect *= (1.0 - partner) * inside(mean, prediction.variance_m2) +
+                           partner * inside(mean + prediction.partner_offset_m,
+                                            prediction.variance_m2 + prediction.partner_extra_variance_m2);
     prediction.window_min_m = std::max(prediction.window_min_m, lower);
     prediction.window_max_m = std::min(prediction.window_max_m, upper);
   }

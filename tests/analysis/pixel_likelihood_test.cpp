@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -52,8 +53,9 @@ struct Case {
 };
 void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
 
-// A draw from the model as the sensor would report it: detected or not, then the truncated
-// Gaussian (rejection) or the uniform outlier, rounded to the bin grid.
+// A draw from the model as the sensor would report it: detected or not, then the Gaussian
+// mixture (the pixel's own and the partner's component) truncated to the window (rejection), or
+// the uniform outlier, rounded to the bin grid.
 double draw(const RangeModel& m, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   if (u(rng) >= m.p_detect) return 0.0;
@@ -61,9 +63,11 @@ double draw(const RangeModel& m, std::mt19937_64& rng) {
   if (u(rng) < m.outlier_mix) {
     r = m.window_min_m + u(rng) * (m.window_max_m - m.window_min_m);
   } else {
-    std::normal_distribution<double> n(m.mean_m, m.sigma_m);
-    do r = n(rng);
-    while (r < m.window_min_m || r > m.window_max_m);
+    std::normal_distribution<double> n(0.0, 1.0);
+    do {
+      r = u(rng) < m.partner_mix ? m.mean_m + m.partner_offset_m + m.partner_sigma() * n(rng)
+                                 : m.mean_m + m.sigma_m * n(rng);
+    } while (r < m.window_min_m || r > m.window_max_m);
   }
   return std::round(r / m.step_m) * m.step_m;
 }
@@ -83,13 +87,15 @@ TEST_P(ScorePixelUnderItsModel, NllMatchesItsExpectationAndPitIsUniform) {
     const PixelScore s = score_pixel(m, r, std::uniform_real_distribution<double>(0, 1)(rng));
     ASSERT_FALSE(s.impossible) << "range " << r;
     nll += s.nll;
-    if (r > 0.0 && std::abs(s.z) <= 5.0) {  // the analysis counts returns beyond 5 sigma as outliers
+    if (r <= 0.0) continue;
+    ++pit[static_cast<size_t>(std::min(9.0, s.pit * 10.0))];
+    if (std::abs(s.z) <= 5.0) {  // the analysis counts returns beyond 5 sigma as outliers
       ++returns;
       z += s.z;
       z2 += s.z * s.z;
-      ++pit[static_cast<size_t>(std::min(9.0, s.pit * 10.0))];
     }
   }
+  const int detected = std::accumulate(pit.begin(), pit.end(), 0);
   const double se = std::sqrt(expected.variance / kDraws);
   EXPECT_NEAR(nll / kDraws, expected.mean, 4.0 * se) << "se " << se;
   const double zm = z / returns;
@@ -97,7 +103,7 @@ TEST_P(ScorePixelUnderItsModel, NllMatchesItsExpectationAndPitIsUniform) {
   EXPECT_NEAR(zm, 0.0, 0.02);
   EXPECT_NEAR(z2 / returns - zm * zm, shep + m.step_m * m.step_m / (12.0 * m.sigma_m * m.sigma_m), 0.03);
   double chi2 = 0.0;
-  for (const int count : pit) chi2 += std::pow(count - returns / 10.0, 2) / (returns / 10.0);
+  for (const int count : pit) chi2 += std::pow(count - detected / 10.0, 2) / (detected / 10.0);
   EXPECT_LT(chi2, 30.0) << "PIT not uniform (9 dof; 30 is p < 0.001)";
 }
 
@@ -105,13 +111,24 @@ RangeModel model(double mean, double sigma, double step, double p_detect = 1.0, 
                  double outliers = 0.0) {
   return {mean, sigma, p_detect, outliers, lo, hi, step};
 }
+// With a partner component (E6's edge partner, E8's halo): weight, offset and its own sigma.
+RangeModel with_partner(RangeModel m, double mix, double offset, double sigma) {
+  m.partner_mix = mix;
+  m.partner_offset_m = offset;
+  m.partner_sigma_m = sigma;
+  return m;
+}
 
 INSTANTIATE_TEST_SUITE_P(Models, ScorePixelUnderItsModel,
                          ::testing::Values(Case{"wide_gaussian_1mm_bins", model(12.0, 0.02, 0.001)},
                                            Case{"narrow_gaussian_exact_bins", model(3.0, 0.0007, 0.001)},
                                            Case{"rng15_8mm_bins", model(25.0, 0.006, 0.008, 0.9)},
                                            Case{"truncated_at_max_range", model(100.02, 0.05, 0.001, 0.4)},
-                                           Case{"with_outliers", model(40.0, 0.03, 0.001, 1.0, 0.3, 100.0, 0.001)}),
+                                           Case{"with_outliers", model(40.0, 0.03, 0.001, 1.0, 0.3, 100.0, 0.001)},
+                                           Case{"edge_partner", with_partner(model(8.0, 0.01, 0.001), 0.3, 0.6, 0.0)},
+                                           Case{"halo_with_its_own_spread",
+                                                with_partner(model(8.0, 0.01, 0.001, 0.95, 0.3, 100.0, 0.002), 0.2,
+                                                             -0.4, 0.05)}),
                          [](const auto& test_info) { return test_info.param.name; });
 
 TEST(ScorePixel, WhatTheModelRulesOutCostsAFiniteVisibleAmount) {

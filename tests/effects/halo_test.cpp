@@ -81,9 +81,14 @@ TEST(Halo, RatesFallWithRowsFromTheRetroreflectorAsPredicted) {
         const auto se = [&s](double q) {
           return std::sqrt(std::max(q * (1.0 - q), 1.0 / static_cast<double>(s.n)) / static_cast<double>(s.n));
         };
-        // The halo is the first return in place of the surface (outlier_mix of the detected),
-        // or the only one where the surface gave none.
-        const double halo_first = in.hit() ? p.p_detect * p.outlier_mix : p.p_detect;
+        // The halo is the first return in place of the surface (the partner component of the
+        // detected, at the retroreflector's range with the halo's own spread), or the only one
+        // where the surface gave none.
+        const double halo_first = in.hit() ? p.p_detect * (1.0 - p.outlier_mix) * p.partner_mix : p.p_detect;
+        if (in.hit() && p.partner_mix > 0.0) {
+          EXPECT_NEAR(p.partner_offset_m, static_cast<double>(kRetroRange - in.range_m) - p.bias_m, 1e-6);
+          EXPECT_NEAR(std::sqrt(p.variance_m2 + p.partner_extra_variance_m2), 0.05, 1e-9);
+        }
         std::printf(
             "  p %.1f decay %4.1f dropout %.1f, %d rows, range %4.1f: detected %.4f vs %.4f, halo first %.4f vs "
             "%.4f, second %.4f vs %.4f\n",

@@ -17,8 +17,10 @@ struct RangeModel {
   double window_min_m = 0.0;
   double window_max_m = 0.0;  // finite: the cast's reach when the chain sets no limit
   double step_m = 0.001;      // the measured range's bin width
-  double partner_mix = 0.0;   // E6: this share of the Gaussian lies partner_offset_m away
+  double partner_mix = 0.0;   // E6, E8: this share of the Gaussian lies partner_offset_m away,
   double partner_offset_m = 0.0;
+  double partner_sigma_m = 0.0;  // with this sigma (0: sigma_m)
+  double partner_sigma() const { return partner_sigma_m > 0.0 ? partner_sigma_m : sigma_m; }
 };
 
 // The chain's prediction for an ideal return at ideal_range_m, on a wire with the given range step.

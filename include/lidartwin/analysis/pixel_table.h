@@ -57,6 +57,7 @@ struct PixelTable {
   std::vector<float> outlier_mix;
   std::vector<float> partner_mix;  // E6: weight and offset of the component at the partner's range
   std::vector<float> partner_offset_m;
+  std::vector<float> partner_sigma_m;  // 0: predicted_sigma_m
   std::vector<float> expected_signal;
   std::vector<float> expected_near_ir;
   std::vector<float> window_min_m;

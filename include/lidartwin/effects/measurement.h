@@ -64,9 +64,12 @@ struct Prediction {
   double near_ir_photons = 0.0;  // expected NEAR_IR (radiometry)
   // E6: with probability partner_mix the return comes from the edge partner's surface, its range
   // offset by partner_offset_m (the Gaussian above, shifted); p_second: the probability of a second
-  // return (dual profiles, E15).
+  // return (dual profiles, E15). E8 puts its halo returns there too, with their own spread: the
+  // component's variance is variance_m2 + partner_extra_variance_m2 (what effects after it add to
+  // variance_m2 they add to both, as their simulate adds it to whichever return comes first).
   double partner_mix = 0.0;
   double partner_offset_m = 0.0;
+  double partner_extra_variance_m2 = 0.0;
   double p_second = 0.0;
   // Photon (shot) noise: the variances of the reported SIGNAL and NEAR_IR about the expected
   // values above (photons^2; 0 = reported exactly).
