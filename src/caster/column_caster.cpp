@@ -75,13 +75,18 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
   cosine = (c < 1.0f).select(c, Lanes::Ones());
 }
 
+// Every pixel starts from this (copied from read-only memory: `ideal = IdealReturn{}` built the
+// 44 bytes on the stack with overlapping stores and copied them out through loads that spanned two
+// of them, a store-forwarding stall per pixel that was 70 % of the caster's own time).
+constexpr IdealReturn kNoReturn{};
+
 void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, int first_row,
                std::span<IdealReturn> out) {
   alignas(64) float cos_incidence[kLanes];
   incidence_lanes(packet, cos_incidence);
   for (size_t i = 0; i < out.size(); ++i) {
     IdealReturn& ideal = out[i];
-    ideal = IdealReturn{};
+    ideal = kNoReturn;
     ideal.beam = static_cast<uint16_t>(first_row + static_cast<int>(i));
     const unsigned geom_id = packet.hit.geomID[i];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
