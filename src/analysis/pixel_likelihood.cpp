@@ -65,6 +65,44 @@ TruncatedMoments truncated_moments(double a, double b, double mass) {
   return {mean, std::sqrt(std::max(variance, 1e-12))};
 }
 
+// The partner's component lies within this many sigmas of the pixel's own: the two overlap, and
+// the expected NLL is the mixture's entropy, by quadrature (kOverlapPoints midpoints over both).
+constexpr double kOverlapSigmas = 10.0;
+constexpr int kOverlapPoints = 400;
+
+bool partner_overlaps(const RangeModel& m) {
+  return m.partner_mix > 0.0 && std::abs(m.partner_offset_m) < kOverlapSigmas * std::max(m.sigma_m, m.partner_sigma());
+}
+
+// E[-ln f] and Var[-ln f] of the Gaussian mixture (own and partner) truncated to the window, f its
+// density: the entropy of narrow bins is this less ln(step).
+struct MixtureEntropy {
+  double mean = 0.0;
+  double variance = 0.0;
+};
+MixtureEntropy mixture_entropy(const RangeModel& m) {
+  const double pe = std::clamp(m.partner_mix, 0.0, 1.0);
+  const double mean2 = m.mean_m + m.partner_offset_m, sigma2 = m.partner_sigma();
+  const double lo = std::max(m.window_min_m, std::min(m.mean_m - 9.0 * m.sigma_m, mean2 - 9.0 * sigma2));
+  const double hi = std::min(m.window_max_m, std::max(m.mean_m + 9.0 * m.sigma_m, mean2 + 9.0 * sigma2));
+  if (hi <= lo) return {};
+  const double mass = (1.0 - pe) * window_mass(m, m.mean_m) + pe * window_mass(m, mean2, sigma2);
+  if (mass <= 0.0) return {};
+  const double dx = (hi - lo) / kOverlapPoints;
+  double h = 0.0, h2 = 0.0;
+  for (int k = 0; k < kOverlapPoints; ++k) {
+    const double x = lo + (k + 0.5) * dx;
+    const double f = ((1.0 - pe) * normal_pdf((x - m.mean_m) / m.sigma_m) / m.sigma_m +
+                      pe * normal_pdf((x - mean2) / sigma2) / sigma2) /
+                     mass;
+    if (f <= 0.0) continue;
+    const double nll = -std::log(f);
+    h += f * nll * dx;
+    h2 += f * nll * nll * dx;
+  }
+  return {h, std::max(h2 - h * h, 0.0)};
+}
+
 }  // namespace
 
 double normal_cdf(double x) { return 0.5 * std::erfc(-x * kSqrtHalf); }
@@ -104,12 +142,20 @@ RangeModel range_model(const Prediction& prediction, double ideal_range_m, doubl
     variance -= prediction.quantization_step_m * prediction.quantization_step_m / 12.0;
   }
   m.sigma_m = std::sqrt(std::max(variance, 0.0));
-  m.p_detect = ideal_range_m > 0.0 ? prediction.p_detect : 0.0;
+  // Where no surface was hit only a partner's component can return (a halo, E8): then it is the
+  // pixel's one Gaussian. Elsewhere off a surface nothing returns.
+  const bool partner_only = ideal_range_m <= 0.0 && prediction.partner_mix >= 1.0;
+  m.p_detect = ideal_range_m > 0.0 || partner_only ? prediction.p_detect : 0.0;
   m.outlier_mix = prediction.outlier_mix;
   m.partner_mix = prediction.partner_mix;
   m.partner_offset_m = prediction.partner_offset_m;
   if (prediction.partner_extra_variance_m2 != 0.0) {
     m.partner_sigma_m = std::sqrt(std::max(variance + prediction.partner_extra_variance_m2, 1e-10));
+  }
+  if (partner_only) {
+    m.mean_m += m.partner_offset_m;
+    m.sigma_m = m.partner_sigma();
+    m.partner_mix = m.partner_offset_m = m.partner_sigma_m = 0.0;
   }
   m.window_min_m = prediction.window_min_m;
   m.window_max_m = std::min(prediction.window_max_m, reach_m);
@@ -218,7 +264,13 @@ NllMoments expected_nll(const RangeModel& m) {
   // their mixing entropy, and the choice's own spread to the variance. A component with its own
   // sigma costs ln(sigma' / sigma) more per return (bins narrow against both).
   const double pe = std::clamp(m.partner_mix, 0.0, 1.0);
-  if (pe > 0.0) {
+  if (partner_overlaps(m) && std::min(m.sigma_m, m.partner_sigma()) >= 4.0 * m.step_m) {
+    // Overlapping components (a halo on the retroreflector's own board, a small depth step): the
+    // mixture's density, not two separate Gaussians and the choice between them.
+    const MixtureEntropy e = mixture_entropy(m);
+    entropy = e.mean - std::log(m.step_m);
+    variance = e.variance;
+  } else if (pe > 0.0) {
     const double wider = std::log(m.partner_sigma() / m.sigma_m);
     const double own = pe < 1.0 ? -std::log1p(-pe) : 0.0, partner = -std::log(pe) + wider;
     const double mixing = (1.0 - pe) * own + pe * partner;

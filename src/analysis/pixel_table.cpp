@@ -251,7 +251,9 @@ void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
 }
 
 void PixelTable::set_prediction(size_t i, const Prediction& prediction, const RangeModel& model) {
-  predicted_bias_m[i] = static_cast<float>(prediction.bias_m);
+  // Off a surface the model's mean is its only component's (a halo's, range_model): kept so that
+  // the model rebuilt from the table (misfit_features.cpp) is the one scored.
+  predicted_bias_m[i] = static_cast<float>(ideal_range_m[i] > 0.0f ? prediction.bias_m : model.mean_m);
   predicted_sigma_m[i] = static_cast<float>(model.sigma_m);
   p_detect[i] = static_cast<float>(model.p_detect);
   outlier_mix[i] = static_cast<float>(model.outlier_mix);

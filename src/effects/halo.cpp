@@ -66,16 +66,17 @@ class Halo final : public TabledEffect<Halo, HaloParameters> {
     }
   }
 
-  // The halo return is narrow (range_sigma_m about the retroreflector's range), so on a surface it
-  // is the mixture's partner component, not the broad outlier one: of the pixel's returns, those
-  // where it came first (stronger than the surface's, or the surface's lost). Where that component
-  // is taken (an edge partner, E6, earlier in the chain) or nothing was hit, as any added return.
+  // The halo return is narrow (range_sigma_m about the retroreflector's range), so it is the
+  // mixture's partner component, not the broad outlier one: of the pixel's returns, those where it
+  // came first (stronger than the surface's, or the surface's lost, or no surface at all: then the
+  // component is all there is). Where that component is taken (an edge partner, E6, earlier in the
+  // chain), as any added return.
   void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
     if (ideal.retro_rows == 0) return;
     const double w = weight_[ideal.retro_rows];
     lose_returns(prediction, params().dropout_probability * w);
     const double p = params().probability * w;
-    if (!ideal.hit() || prediction.partner_mix > 0.0 || p <= 0.0) {
+    if (prediction.partner_mix > 0.0 || p <= 0.0) {
       predict_added_return(prediction, ideal.hit(), p, params().signal_photons);
       return;
     }

@@ -85,7 +85,10 @@ TEST(Halo, RatesFallWithRowsFromTheRetroreflectorAsPredicted) {
         // detected, at the retroreflector's range with the halo's own spread), or the only one
         // where the surface gave none.
         const double halo_first = in.hit() ? p.p_detect * (1.0 - p.outlier_mix) * p.partner_mix : p.p_detect;
-        if (in.hit() && p.partner_mix > 0.0) {
+        if (p.partner_mix > 0.0) {  // off a surface, the halo is all there is (partner_mix 1)
+          if (!in.hit()) {
+            EXPECT_EQ(p.partner_mix, 1.0);
+          }
           EXPECT_NEAR(p.partner_offset_m, static_cast<double>(kRetroRange - in.range_m) - p.bias_m, 1e-6);
           EXPECT_NEAR(std::sqrt(p.variance_m2 + p.partner_extra_variance_m2), 0.05, 1e-9);
         }
