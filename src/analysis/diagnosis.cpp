@@ -455,6 +455,8 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
     }
     const Candidate& best = fits.front();
     if (best.delta_bic < options.min_delta_bic || best.p_value > corrected_alpha) break;
+    const CandidateSpec& best_spec =
+        **std::find_if(pool.begin(), pool.end(), [&](const CandidateSpec* s) { return s->effect == best.effect; });
     // Weighed against the strongest per-bin pattern of the misfit (unexplained.h), each given the
     // other: a free value per bin of one feature (a bias per material, a detection rate per beam)
     // is added to the chain and the candidate refitted given it, and the pattern refitted given the
@@ -475,9 +477,7 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
       const double with_pattern = total_nll(table, rows, current, &adjust);
       const double pattern_bic =
           2.0 * (current_nll - with_pattern) - pattern.dof * std::log(static_cast<double>(rows.size()));
-      const auto spec =
-          std::find_if(pool.begin(), pool.end(), [&](const CandidateSpec* s) { return s->effect == best.effect; });
-      const Candidate given = fit(table, rows, Placement{current, {}}, with_pattern, **spec, &adjust);
+      const Candidate given = fit(table, rows, Placement{current, {}}, with_pattern, best_spec, &adjust);
       double pattern_given = 0.0;  // the pattern's delta BIC given the candidate
       if (given.delta_bic < options.min_delta_bic) {
         const EffectChain with = with_candidate(current, best.effect_json);
@@ -502,8 +502,7 @@ Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misf
       }
     }
     last = Kept{fits, best, current, current_nll};
-    selected_specs.push_back(
-        **std::find_if(pool.begin(), pool.end(), [&](const CandidateSpec* s) { return s->effect == best.effect; }));
+    selected_specs.push_back(best_spec);
     d.selected.push_back(best);
     current = with_candidate(current, best.effect_json);
     current_nll -= best.delta_nll;

@@ -5,6 +5,7 @@
 // than any second. Its REFLECTIVITY is 0: no surface's calibration applies to it.
 #include <cstddef>
 
+#include "lidartwin/caster/ideal_return.h"
 #include "lidartwin/effects/measurement.h"
 
 namespace lidartwin::effects_detail {
@@ -39,6 +40,29 @@ inline void predict_added_return(Prediction& prediction, bool hit, double p, dou
     const double displaced = signal_photons > prediction.signal_photons ? p * (1.0 - prediction.outlier_mix) : 0.0;
     prediction.outlier_mix = (before * (prediction.outlier_mix + displaced) + (1.0 - before) * p) / after;
   }
+  prediction.p_detect = after;
+}
+
+// The same for a return at a known range (range_m, spread sigma_m: a halo at the retroreflector's
+// range, E8): where it comes first (stronger than the surface's, the surface's lost, or no surface)
+// it is the mixture's partner component, narrow, not the broad outlier one; off a surface it is
+// all there is (partner_mix 1). Where that component is taken (an edge partner, E6), as above.
+inline void predict_added_return_at(Prediction& prediction, const IdealReturn& ideal, double p, double signal_photons,
+                                    double range_m, double sigma_m) {
+  if (prediction.partner_mix > 0.0 || p <= 0.0) {
+    predict_added_return(prediction, ideal.hit(), p, signal_photons);
+    return;
+  }
+  const double before = prediction.p_detect, after = 1.0 - (1.0 - before) * (1.0 - p);
+  prediction.p_second += (before - prediction.p_second) * p;
+  const double first = signal_photons > prediction.signal_photons ? p : 0.0;  // displaces the surface's
+  const double added = before * first + (1.0 - before) * p;
+  const double surface = before * (1.0 - first);
+  const double gaussian = surface * (1.0 - prediction.outlier_mix);
+  prediction.outlier_mix = surface * prediction.outlier_mix / after;
+  prediction.partner_mix = added + gaussian > 0.0 ? added / (added + gaussian) : 0.0;
+  prediction.partner_offset_m = range_m - (static_cast<double>(ideal.range_m) + prediction.bias_m);
+  prediction.partner_extra_variance_m2 = sigma_m * sigma_m - prediction.variance_m2;
   prediction.p_detect = after;
 }
 

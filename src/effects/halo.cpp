@@ -66,32 +66,14 @@ class Halo final : public TabledEffect<Halo, HaloParameters> {
     }
   }
 
-  // The halo return is narrow (range_sigma_m about the retroreflector's range), so it is the
-  // mixture's partner component, not the broad outlier one: of the pixel's returns, those where it
-  // came first (stronger than the surface's, or the surface's lost, or no surface at all: then the
-  // component is all there is). Where that component is taken (an edge partner, E6, earlier in the
-  // chain), as any added return.
+  // The halo return is narrow (range_sigma_m about the retroreflector's range): a partner
+  // component of the mixture where it comes first (extra_return.h).
   void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
     if (ideal.retro_rows == 0) return;
     const double w = weight_[ideal.retro_rows];
     lose_returns(prediction, params().dropout_probability * w);
-    const double p = params().probability * w;
-    if (prediction.partner_mix > 0.0 || p <= 0.0) {
-      predict_added_return(prediction, ideal.hit(), p, params().signal_photons);
-      return;
-    }
-    const double before = prediction.p_detect, after = 1.0 - (1.0 - before) * (1.0 - p);
-    prediction.p_second += (before - prediction.p_second) * p;
-    const double first = params().signal_photons > prediction.signal_photons ? p : 0.0;  // displaces the surface's
-    const double halo = before * first + (1.0 - before) * p;
-    const double surface = before * (1.0 - first);
-    const double gaussian = surface * (1.0 - prediction.outlier_mix);
-    prediction.outlier_mix = surface * prediction.outlier_mix / after;
-    prediction.partner_mix = halo + gaussian > 0.0 ? halo / (halo + gaussian) : 0.0;
-    prediction.partner_offset_m =
-        static_cast<double>(ideal.retro_range_m) - (static_cast<double>(ideal.range_m) + prediction.bias_m);
-    prediction.partner_extra_variance_m2 = params().range_sigma_m * params().range_sigma_m - prediction.variance_m2;
-    prediction.p_detect = after;
+    predict_added_return_at(prediction, ideal, params().probability * w, params().signal_photons,
+                            static_cast<double>(ideal.retro_range_m), params().range_sigma_m);
   }
 
  private:
