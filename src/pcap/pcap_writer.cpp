@@ -10,11 +10,14 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lidartwin/error.h"
 #include "lidartwin/pcap/pcap.h"
+#include "pcap/block_file_writer.h"
 #include "pcap/frame_encoder.h"
 
 namespace lidartwin {
@@ -49,7 +52,8 @@ std::string system_error() { return std::strerror(errno); }
 
 struct PcapWriter::Impl {
   std::string name;
-  int fd = -1;
+  int fd = -1;                                         // kEachDatagram
+  std::optional<pcap_detail::BlockFileWriter> blocks;  // kInBlocks
   uint16_t next_ip_id = 1;                      // a sender's IP id counter: distinct per datagram, as reassembly needs
   std::vector<pcap_detail::FrameParts> frames;  // reused between datagrams
   std::vector<RecordHeader> records;
@@ -59,8 +63,13 @@ struct PcapWriter::Impl {
     if (fd >= 0) ::close(fd);
   }
 
-  // All of pieces, resuming after a short write (a signal, a full pipe).
   void write_all() {
+    if (!blocks) return write_now();
+    for (const iovec& piece : pieces) blocks->append({static_cast<const uint8_t*>(piece.iov_base), piece.iov_len});
+  }
+
+  // All of pieces, resuming after a short write (a signal, a full pipe).
+  void write_now() {
     iovec* piece = pieces.data();
     size_t left = pieces.size();
     while (left > 0) {
@@ -80,16 +89,28 @@ struct PcapWriter::Impl {
   }
 };
 
-PcapWriter::PcapWriter(const std::filesystem::path& path) : impl_(std::make_unique<Impl>()) {
+PcapWriter::PcapWriter(const std::filesystem::path& path, PcapFlush flush) : impl_(std::make_unique<Impl>()) {
   impl_->name = path.string();
-  impl_->fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (impl_->fd < 0) throw InputError(impl_->name + ": cannot write capture: " + system_error());
+  if (flush == PcapFlush::kInBlocks) {
+    impl_->blocks.emplace(path);
+  } else {
+    impl_->fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (impl_->fd < 0) throw InputError(impl_->name + ": cannot write capture: " + system_error());
+  }
   FileHeader header;
   impl_->pieces = {{&header, sizeof header}};
   impl_->write_all();
 }
 
 PcapWriter::~PcapWriter() = default;
+
+void PcapWriter::close() {
+  Impl& impl = *impl_;
+  if (impl.blocks) return impl.blocks->close();
+  if (impl.fd < 0) return;
+  const int fd = std::exchange(impl.fd, -1);
+  if (::close(fd) != 0) throw InputError(impl.name + ": cannot write capture: " + system_error());
+}
 
 void PcapWriter::write(const UdpDatagramView& datagram) {
   Impl& impl = *impl_;

@@ -30,7 +30,7 @@ class CaptureWriter {
  public:
   CaptureWriter(const ForwardModel& model, const std::filesystem::path& dir)
       : model_(model),
-        pcap_(dir / "capture.pcap"),
+        pcap_(dir / "capture.pcap", PcapFlush::kInBlocks),
         column_poses_(dir / "column_poses.tum"),
         imu_(model.format().udp_profile_imu == UdpProfileImu::kLegacy),
         ready_(model.packet_columns().size()) {}
@@ -55,7 +55,10 @@ class CaptureWriter {
     assert(next_.load() == ready_.size());
   }
 
-  void close() { column_poses_.close(); }
+  void close() {
+    pcap_.close();
+    column_poses_.close();
+  }
 
   // Writes the IMU packets due up to (and including) time_ns.
   void write_imu_until(uint64_t time_ns) {

@@ -13,6 +13,7 @@
 // ratios printed are medians over the repeats (this host's speed drifts by tens of percent between
 // runs, much less within a pair), the rates the best of each.
 // Usage: pipeline_bench [frames=20] [threads=0 (all cores)] [repeats=5] [only=all|pipeline|record]
+//                       [pose=both|drone|ground]
 // ("pipeline" runs only (c), "record" only (d), for profiling).
 #include <algorithm>
 #include <atomic>
@@ -355,7 +356,11 @@ int main(int argc, char** argv) {
        std::make_unique<TrajectoryPoses>(Trajectory::load_tum(kSource / "scenes/plant_inspection.tum"))},
       {"ground (pose \"15 9 1.7 0 0 0 1\")", std::make_unique<StaticPose>(parse_pose(kGroundPose))},
   };
-  for (const Scenario& scenario : scenarios) run_scenario(s, scenario, frames, threads, repeats, only);
+  const std::string pose = argc > 5 ? argv[5] : "both";
+  for (const Scenario& scenario : scenarios) {
+    if (pose == "both" || std::string(scenario.name).starts_with(pose))
+      run_scenario(s, scenario, frames, threads, repeats, only);
+  }
   if (only == "all") chain_ratios(s, scenarios[0], frames, threads, repeats);
   return 0;
 }

@@ -1,9 +1,13 @@
 // Pose parsing, TUM files and interpolation, checked against closed forms.
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <random>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -121,6 +125,39 @@ TEST(Trajectory, TumRoundTrip) {
   for (double t : {0.0, 1.3, 2.2, 3.0}) {
     EXPECT_NEAR((back.at(t).translation - trajectory.at(t).translation).norm(), 0.0, 1e-9);
     EXPECT_NEAR(back.at(t).rotation.angularDistance(trajectory.at(t).rotation), 0.0, 1e-9);
+  }
+}
+
+// TUM rows carry printf's "%.9f" (time, position) and "%.12f" (quaternion) digits, whatever the
+// magnitude: values near rounding ties, tiny negatives ("-0.000..."), and large ones.
+TEST(Trajectory, TumRowsHavePrintfsDigits) {
+  std::mt19937_64 rng(20261125);
+  std::vector<std::array<double, 8>> rows;
+  for (int i = 0; i < 2000; ++i) {
+    std::array<double, 8> row{};
+    for (double& v : row) {
+      const double mantissa = std::uniform_real_distribution<double>(-1.0, 1.0)(rng);
+      v = std::ldexp(mantissa, std::uniform_int_distribution<int>(-50, 40)(rng));
+    }
+    rows.push_back(row);
+  }
+  rows.push_back({0.5e-9, -0.5e-9, 1.5e-9, 2.5e-9, 0.5e-12, -1.5e-12, -0.0, 1.0});
+  rows.push_back({1.0000000005, 123456.7890123455, -2.0000000015, 1e30, 0.9999999999995, -0.25, 0.125, 5e-13});
+  const auto path = temp_file("digits.tum", "");
+  {
+    TumWriter writer(path);
+    for (const auto& r : rows) writer.write(r[0], Pose{Eigen::Quaterniond(r[7], r[4], r[5], r[6]), {r[1], r[2], r[3]}});
+    writer.close();
+  }
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // the header
+  for (const auto& r : rows) {
+    char expected[8 * 400];
+    std::snprintf(expected, sizeof expected, "%.9f %.9f %.9f %.9f %.12f %.12f %.12f %.12f", r[0], r[1], r[2], r[3],
+                  r[4], r[5], r[6], r[7]);
+    ASSERT_TRUE(std::getline(in, line));
+    EXPECT_EQ(line, expected);
   }
 }
 

@@ -71,18 +71,29 @@ class PcapReader {
 std::vector<UdpDatagram> read_pcap(const std::filesystem::path& path);
 std::vector<UdpDatagram> read_pcap(const std::filesystem::path& path, PcapStats& stats);
 
+// When written datagrams reach the file.
+enum class PcapFlush {
+  kEachDatagram,  // in the file when write() returns: a reader may follow a live capture (serve --record)
+  kInBlocks,      // in 4 MiB blocks that a background thread writes with O_DIRECT where the file
+                  // system takes it (no page-cache copy on the caller's thread: `record`); close()
+                  // writes the rest
+};
+
 // Writes datagrams as a real capture has them: Ethernet + IPv4 + UDP, fragmented at a 1500-byte MTU.
 // Timestamps are stored in microseconds (classic pcap), so sub-microsecond parts are dropped.
 class PcapWriter {
  public:
-  explicit PcapWriter(const std::filesystem::path& path);  // throws InputError if it cannot open
-  ~PcapWriter();
+  // Throws InputError if it cannot create the file.
+  explicit PcapWriter(const std::filesystem::path& path, PcapFlush flush = PcapFlush::kEachDatagram);
+  ~PcapWriter();  // closes; a write error is reported only by close()
   PcapWriter(const PcapWriter&) = delete;
   PcapWriter& operator=(const PcapWriter&) = delete;
-  // Unbuffered: the datagram is in the file when this returns. Throws InputError if the payload
-  // does not fit one UDP datagram (65507 bytes), or naming the file if the write fails (disk full).
+  // Throws InputError if the payload does not fit one UDP datagram (65507 bytes), or naming the
+  // file if a write failed (disk full): with kInBlocks, a block written earlier, or at close().
   void write(const UdpDatagramView& datagram);
   void write(const UdpDatagram& datagram) { write(view_of(datagram)); }
+  // Writes what is staged and closes the file; throws InputError as write() does.
+  void close();
 
  private:
   struct Impl;
