@@ -46,9 +46,7 @@ class BeamGeometry {
   BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame);
   int columns() const { return columns_; }
   int rows() const { return rows_; }
-  const BeamRay& ray(int row, int measurement_id) const {
-    return rays_[static_cast<size_t>(measurement_id * rows_ + row)];
-  }
+  BeamRay ray(int row, int measurement_id) const;  // from its packet
   // The point the SDK computes for a range in mm (7.1), in the sensor frame, metres.
   Eigen::Vector3d point(int row, int measurement_id, double range_mm) const;
   // Angles between beam axes (radians), for the footprint of a beam across an edge (E6): row r and
@@ -64,9 +62,8 @@ class BeamGeometry {
  private:
   int columns_ = 0;
   int rows_ = 0;
-  std::vector<BeamRay> rays_;  // column-major like Scan
   int packets_per_column_ = 0;
-  std::vector<RayPacket16> packets_;   // the same rays, column by column
+  std::vector<RayPacket16> packets_;   // the rays, column by column
   BeamIntrinsics beams_;               // for point(), in double precision
   std::vector<float> row_spacing_;     // [rows - 1]
   std::vector<float> column_spacing_;  // [rows]
