@@ -7,7 +7,9 @@
 // the Gen1 OS1 range spec (40 m at 10 %, 120 m at 80 %, [S1]: S = 8.6 and 7.7 photons) then sits
 // at P_det = 0.93 and 0.90.
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "effects/builtin_effects.h"
@@ -64,13 +66,18 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
       // return is detected, where it is below, dropped, without the log and exp of P_det; only
       // returns whose P_det falls in u's own cell (1 in kCells) compute it. The same outcomes as
       // comparing u with P_det itself.
+      // The outcome is a select, not a branch: for returns with P_det between 0 and 1 it is random,
+      // and a branch on it mispredicted (a fifth of the effect's time from the ground pose).
       const auto cell = static_cast<size_t>(u * kCells);
       const float th = threshold(near_ir);
-      if (signal >= th * detect_from_[cell + 1]) continue;
-      if (signal >= th * drop_below_[cell] && u < static_cast<double>(detection_probability(signal, near_ir))) continue;
-      measured.range_m[beam] = 0.0f;
-      measured.signal_photons[beam] = 0.0f;
-      measured.reflectivity[beam] = 0.0f;
+      bool detected = signal >= th * detect_from_[cell + 1];
+      const bool undecided = !detected & (signal >= th * drop_below_[cell]);  // & : no branch on detected
+      if (undecided) detected = u < static_cast<double>(detection_probability(signal, near_ir));
+      const uint32_t keep = 0u - static_cast<uint32_t>(detected);  // all ones, or zero (+0.0f)
+      const auto masked = [keep](float& value) { value = std::bit_cast<float>(std::bit_cast<uint32_t>(value) & keep); };
+      masked(measured.range_m[beam]);
+      masked(measured.signal_photons[beam]);
+      masked(measured.reflectivity[beam]);
     }
   }
 

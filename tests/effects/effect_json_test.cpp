@@ -137,6 +137,7 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
                                                     {"radiometry", ""},
                                                     {"shot_noise", ""}};
   for (const std::string& name : lidartwin::registered_effects()) {
+    if (name.starts_with("test_")) continue;  // registered by another test in this binary
     ASSERT_TRUE(expected.count(name)) << name << " is registered but this test does not know its catalogue id";
     EXPECT_EQ(lidartwin::effect_catalogue(name), expected.at(name)) << name;
   }
