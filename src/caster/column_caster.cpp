@@ -200,6 +200,13 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // the beams of a column are coherent
   const RayPacket16* rays = geometry_.packets(measurement_id);
+  // The next column's rays (4 KiB for 128 beams) are fetched while Embree casts this one: read
+  // after its traversal had filled the caches, they missed, a third of the caster's own time.
+  if (measurement_id + 1 < geometry_.columns()) {
+    const auto* next = reinterpret_cast<const char*>(geometry_.packets(measurement_id + 1));
+    const size_t bytes = sizeof(RayPacket16) * static_cast<size_t>(geometry_.packets_per_column());
+    for (size_t offset = 0; offset < bytes; offset += 64) __builtin_prefetch(next + offset, 0, 2);
+  }
   for (int k = 0; k < geometry_.packets_per_column(); ++k) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];

@@ -123,6 +123,25 @@ namespace {
 // exact), so the integer nearest the exact product is found without big-number arithmetic; larger
 // values go through std::to_chars. libstdc++'s fixed-precision to_chars took 3 % of `record`'s
 // CPU from the drone's pose (a row per column, 8 numbers): this takes about a tenth of that.
+// n in decimal, zero-padded to at least `width` digits, two digits at a time.
+char* put_digits(char* out, uint64_t n, int width) {
+  static constexpr char kPairs[] =
+      "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+      "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+      "8081828384858687888990919293949596979899";
+  char reversed[24];
+  int count = 0;
+  for (; n >= 10; n /= 100, count += 2) {
+    const auto pair = static_cast<size_t>(n % 100) * 2;
+    reversed[count] = kPairs[pair + 1];
+    reversed[count + 1] = kPairs[pair];
+  }
+  if (n > 0) reversed[count++] = static_cast<char>('0' + n);
+  while (count < width) reversed[count++] = '0';
+  for (int i = count - 1; i >= 0; --i) *out++ = reversed[i];
+  return out;
+}
+
 char* put_fixed(char* out, char* end, double value, int decimals) {
   static constexpr double kPowers[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12};
   static_assert(std::size(kPowers) == 13);
@@ -136,19 +155,12 @@ char* put_fixed(char* out, char* end, double value, int decimals) {
   const double diff = product - nearest;
   if (diff == 0.5 && error > 0.0) nearest += 1.0;
   if (diff == -0.5 && error < 0.0) nearest -= 1.0;
-  auto digits = static_cast<uint64_t>(nearest);
+  const auto digits = static_cast<uint64_t>(nearest);
+  const auto whole = static_cast<uint64_t>(kPowers[decimals]);
   if (std::signbit(value)) *out++ = '-';  // as printf: "-0.000" for a small negative value
-  char reversed[24];
-  int n = 0;
-  for (int i = 0; i < decimals; ++i, digits /= 10) reversed[n++] = static_cast<char>('0' + digits % 10);
-  do {
-    reversed[n++] = static_cast<char>('0' + digits % 10);
-    digits /= 10;
-  } while (digits > 0);
-  for (int i = n - 1; i >= decimals; --i) *out++ = reversed[i];
+  out = put_digits(out, digits / whole, 1);
   if (decimals > 0) *out++ = '.';
-  for (int i = decimals - 1; i >= 0; --i) *out++ = reversed[i];
-  return out;
+  return put_digits(out, digits % whole, decimals);
 }
 
 }  // namespace
