@@ -1,9 +1,12 @@
 // Trajectories: TUM files in and out, and the pose at any time (lerp + slerp between samples).
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <string>
 
@@ -117,50 +120,82 @@ TumWriter::~TumWriter() {
 
 namespace {
 
-// value with `decimals` digits after the point, the digits printf's "%.*f" gives (the exact binary
-// value rounded to nearest, ties to even). Where value * 10^decimals is below 2^53 that is an
-// integer rounding: the product's rounding error is recovered exactly with an FMA (10^decimals is
-// exact), so the integer nearest the exact product is found without big-number arithmetic; larger
-// values go through std::to_chars. libstdc++'s fixed-precision to_chars took 3 % of `record`'s
-// CPU from the drone's pose (a row per column, 8 numbers): this takes about a tenth of that.
-// n in decimal, zero-padded to at least `width` digits, two digits at a time.
-char* put_digits(char* out, uint64_t n, int width) {
-  static constexpr char kPairs[] =
-      "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
-      "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
-      "8081828384858687888990919293949596979899";
-  char reversed[24];
-  int count = 0;
-  for (; n >= 10; n /= 100, count += 2) {
-    const auto pair = static_cast<size_t>(n % 100) * 2;
-    reversed[count] = kPairs[pair + 1];
-    reversed[count + 1] = kPairs[pair];
+constexpr char kPairs[] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
+// Four digits of v (< 10000) as two pairs from the table.
+void put_four(char* at, uint64_t v) {
+  std::memcpy(at, &kPairs[v / 100 * 2], 2);
+  std::memcpy(at + 2, &kPairs[v % 100 * 2], 2);
+}
+
+// n < 10^kDigits with exactly kDigits digits (9 or 12: TUM's decimals). Each group of four comes
+// from n by its own division by a constant: independent multiplications, where a digit-by-digit
+// chain of divisions (or one by a table's power of ten, a hardware divide) made the row slow.
+template <int kDigits>
+char* put_fraction(char* out, uint64_t n) {
+  static_assert(kDigits == 9 || kDigits == 12);
+  if constexpr (kDigits == 12) {
+    put_four(out, n / 100000000);
+  } else {
+    *out = static_cast<char>('0' + n / 100000000);
   }
-  if (n > 0) reversed[count++] = static_cast<char>('0' + n);
-  while (count < width) reversed[count++] = '0';
-  for (int i = count - 1; i >= 0; --i) *out++ = reversed[i];
+  char* tail = out + (kDigits - 8);
+  put_four(tail, n / 10000 % 10000);
+  put_four(tail + 4, n % 10000);
+  return out + kDigits;
+}
+
+// n in decimal, without leading zeros (an integer part: a few digits).
+char* put_integer(char* out, uint64_t n) {
+  char reversed[20];
+  int count = 0;
+  do {
+    reversed[count++] = static_cast<char>('0' + n % 10);
+    n /= 10;
+  } while (n > 0);
+  while (count > 0) *out++ = reversed[--count];
   return out;
 }
 
-char* put_fixed(char* out, char* end, double value, int decimals) {
-  static constexpr double kPowers[] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12};
-  static_assert(std::size(kPowers) == 13);
-  const double scale = kPowers[decimals];
-  const double product = std::abs(value) * scale;
-  if (!(product < 0x1p53)) return std::to_chars(out, end, value, std::chars_format::fixed, decimals).ptr;
-  const double error = std::fma(std::abs(value), scale, -product);  // exact product = product + error
-  double nearest = std::nearbyint(product);                         // ties to even, on the rounded product
-  // |product - nearest| <= 1/2 (exact), and the error is below half an ulp of the product, so it
-  // decides only where the rounded product is a tie: the exact one is then past it, or a true tie.
-  const double diff = product - nearest;
-  if (diff == 0.5 && error > 0.0) nearest += 1.0;
-  if (diff == -0.5 && error < 0.0) nearest -= 1.0;
-  const auto digits = static_cast<uint64_t>(nearest);
-  const auto whole = static_cast<uint64_t>(kPowers[decimals]);
+// value with kDecimals (9 or 12) digits after the point, the digits printf's "%.*f" gives: the
+// exact binary value rounded to nearest, ties to even. value = m 2^k exactly (m the 53-bit
+// significand), so value 10^d = (m 5^d) 2^(k + d), and m 5^d < 2^81 is exact in 128-bit integers: the rounding
+// is a shift with the bits shifted out as the remainder. Values whose scaled magnitude reaches
+// 2^62 (or are not finite) go through std::to_chars. libstdc++'s fixed-precision to_chars took 3 %
+// of `record`'s CPU from the drone's pose (a row per column, 8 numbers); this takes a fraction
+// (and no FMA or rounding instruction, which this module's baseline x86-64 would call libm for).
+template <int kDecimals>
+char* put_fixed(char* out, char* end, double value) {
+  __extension__ typedef unsigned __int128 Wide;  // GCC and Clang (-Wpedantic wants the marker)
+  constexpr uint64_t kFive = kDecimals == 12 ? 244140625ULL : 1953125ULL;          // 5^d
+  constexpr uint64_t kScale = kDecimals == 12 ? 1000000000000ULL : 1000000000ULL;  // 10^d
+  if (!(std::abs(value) * static_cast<double>(kScale) < 0x1p62)) {
+    return std::to_chars(out, end, value, std::chars_format::fixed, kDecimals).ptr;
+  }
+  const uint64_t bits = std::bit_cast<uint64_t>(value);
+  const auto exponent = static_cast<int>((bits >> 52) & 0x7FF);
+  const uint64_t fraction = bits & ((uint64_t{1} << 52) - 1);
+  const uint64_t m = exponent == 0 ? fraction : fraction | (uint64_t{1} << 52);  // subnormal: no hidden bit
+  const int shift = (exponent == 0 ? -1074 : exponent - 1075) + kDecimals;       // value 10^d = x 2^shift
+  const Wide x = static_cast<Wide>(m) * kFive;
+  uint64_t digits = 0;
+  if (shift >= 0) {
+    digits = static_cast<uint64_t>(x << shift);  // below 2^62 by the check above
+  } else if (shift > -128) {
+    const int right = -shift;
+    const Wide quotient = x >> right;
+    const Wide rest = x - (quotient << right);
+    const Wide half = Wide{1} << (right - 1);
+    digits = static_cast<uint64_t>(quotient);
+    if (rest > half || (rest == half && (digits & 1) != 0)) ++digits;
+  }                                       // else: below 2^-47 of a unit in the last place, rounds to 0
   if (std::signbit(value)) *out++ = '-';  // as printf: "-0.000" for a small negative value
-  out = put_digits(out, digits / whole, 1);
-  if (decimals > 0) *out++ = '.';
-  return put_digits(out, digits % whole, decimals);
+  out = put_integer(out, digits / kScale);
+  *out++ = '.';
+  return put_fraction<kDecimals>(out, digits % kScale);
 }
 
 }  // namespace
@@ -175,7 +210,8 @@ void TumWriter::write(double time_s, const Pose& pose) {
   std::array<char, 8 * 324> row;
   char* out = row.data();
   for (size_t i = 0; i < values.size(); ++i) {
-    out = put_fixed(out, row.data() + row.size(), values[i], i < 4 ? 9 : 12);
+    const auto end = row.data() + row.size();
+    out = i < 4 ? put_fixed<9>(out, end, values[i]) : put_fixed<12>(out, end, values[i]);
     *out++ = i + 1 < values.size() ? ' ' : '\n';
   }
   std::fwrite(row.data(), 1, static_cast<size_t>(out - row.data()), file_);
