@@ -43,6 +43,7 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
   }
 
   std::vector<std::string_view> prerequisites() const override { return {"radiometry"}; }
+  bool adds_returns() const override { return false; }
 
   // The same float arithmetic serves both directions, so they agree to the last bit.
   float threshold(float near_ir) const {
@@ -58,7 +59,7 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
 
   void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
-    for (uint32_t beam = 0; beam < measured.size(); ++beam) {
+    for (const uint32_t beam : measured.listed_returns()) {
       if (measured.range_m[beam] == 0.0f) continue;
       const float signal = measured.signal_photons[beam], near_ir = measured.near_ir_photons[beam];
       const double u = streams(beam).uniform(0);

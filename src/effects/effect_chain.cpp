@@ -91,7 +91,11 @@ void EffectChain::simulate(std::span<const IdealReturn> ideal, const ColumnConte
                          &out.signal2_photons, &out.reflectivity2}) {
     std::fill(quantity->begin(), quantity->end(), 0.0f);
   }
-  for (const auto& effect : effects_) effect->simulate(ideal, context, out);
+  out.list_returns();
+  for (const auto& effect : effects_) {
+    effect->simulate(ideal, context, out);
+    if (effect->adds_returns()) out.list_returns();
+  }
 }
 
 void EffectChain::simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,

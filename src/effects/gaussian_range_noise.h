@@ -19,12 +19,14 @@ class GaussianRangeNoise : public Base {
     const auto& self = static_cast<const Derived&>(*this);
     const ColumnStreams streams = this->column_streams(context);
     float* range = measured.range_m.data();
-    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
-      if (range[beam] == 0.0f) continue;  // no return (a negative noisy range still counts)
+    for (const uint32_t beam : measured.listed_returns()) {
+      if (range[beam] == 0.0f) continue;  // no longer a return (a negative noisy range still counts)
       const double noise = self.sigma(ideal[beam].range_m) * streams(beam).normal_ziggurat(0);
       range[beam] = static_cast<float>(static_cast<double>(range[beam]) + noise);
     }
   }
+
+  bool adds_returns() const override { return false; }
 
   void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
     const double s = static_cast<const Derived&>(*this).sigma(ideal.range_m);

@@ -39,7 +39,7 @@ class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
                 MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
     float* range = measured.range_m.data();
-    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
+    for (const uint32_t beam : measured.listed_returns()) {
       if (range[beam] == 0.0f) continue;
       const double spread = footprint_m(ideal[beam]);
       const double shift = params().bias_factor * spread;
@@ -47,6 +47,8 @@ class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
                                        spread * kSigmaPerFwhm * streams(beam).normal_ziggurat(0));
     }
   }
+
+  bool adds_returns() const override { return false; }
 
   void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
     const double spread = footprint_m(ideal);

@@ -84,15 +84,17 @@ class Radiometry final : public TabledEffect<Radiometry, RadiometryParameters> {
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
                 MeasuredColumn& measured) const override {
     const float gain = column_gain(context);
-    for (size_t beam = 0; beam < ideal.size(); ++beam) {
+    for (size_t beam = 0; beam < ideal.size(); ++beam) measured.near_ir_photons[beam] = near_ir(ideal[beam]);
+    for (const uint32_t beam : measured.listed_returns()) {
       const IdealReturn& in = ideal[beam];
-      measured.near_ir_photons[beam] = near_ir(in);
       if (!in.hit() || measured.range_m[beam] == 0.0f) continue;  // no return: no signal, no reflectivity
       const float rho_app = apparent_reflectance(in);
       measured.signal_photons[beam] = gain * rho_app * range_factor_(in.range_m);
       measured.reflectivity[beam] = reflectivity_byte(rho_app);
     }
   }
+
+  bool adds_returns() const override { return false; }
 
   void predict(const IdealReturn& in, const ColumnContext& context, Prediction& prediction) const override {
     prediction.near_ir_photons = static_cast<double>(near_ir(in));

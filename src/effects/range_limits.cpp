@@ -38,6 +38,8 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
     }
   }
 
+  bool adds_returns() const override { return false; }
+
   void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const float lower = static_cast<float>(params().min_m);
     const float upper = std::min(static_cast<float>(params().max_m), context.max_wire_range_m);

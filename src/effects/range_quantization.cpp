@@ -40,6 +40,8 @@ class RangeQuantization final : public TabledEffect<RangeQuantization, Quantizat
     return std::round(static_cast<double>(context.range_step_m) * 1e9) * 1e-9;
   }
 
+  bool adds_returns() const override { return false; }
+
   void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const double delta = step(context);
     if (delta <= 0.0) return;

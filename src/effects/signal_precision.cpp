@@ -32,16 +32,18 @@ class SignalPrecision final : public TabledEffect<SignalPrecision, SignalPrecisi
 
   std::vector<std::string_view> prerequisites() const override { return {"radiometry"}; }
 
-  void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
+  void simulate(std::span<const IdealReturn>, const ColumnContext& context,
                 MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
     float* range = measured.range_m.data();
-    for (uint32_t beam = 0; beam < ideal.size(); ++beam) {
+    for (const uint32_t beam : measured.listed_returns()) {
       if (range[beam] == 0.0f) continue;
       const double sigma = std::sqrt(variance(measured.signal_photons[beam], measured.near_ir_photons[beam]));
       range[beam] = static_cast<float>(static_cast<double>(range[beam]) + sigma * streams(beam).normal_ziggurat(0));
     }
   }
+
+  bool adds_returns() const override { return false; }
 
   void predict(const IdealReturn&, const ColumnContext&, Prediction& prediction) const override {
     prediction.variance_m2 += variance(prediction.signal_photons, prediction.near_ir_photons);

@@ -44,6 +44,10 @@ class Effect {
   virtual std::unique_ptr<Effect> with_parameters(std::span<const double> values) const = 0;
   nlohmann::json to_json() const;  // {"name": ..., <parameter>: value, ...}
 
+  // Whether simulate may give a pixel without a return one (false alarms, fog, halo...): the chain
+  // then lists the returns again (MeasuredColumn::listed_returns). Effects that only change or
+  // remove returns say false.
+  virtual bool adds_returns() const { return true; }
   // Effects that must come earlier in a chain, e.g. dropout reads the signal radiometry produces.
   virtual std::vector<std::string_view> prerequisites() const { return {}; }
   // Whether it reads IdealReturn's partner_* fields, which the caster then fills (E6).

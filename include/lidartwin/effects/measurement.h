@@ -3,6 +3,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <vector>
 
 namespace lidartwin {
@@ -30,9 +31,26 @@ struct MeasuredColumn {
         reflectivity(beams),
         range2_m(beams),
         signal2_photons(beams),
-        reflectivity2(beams) {}
+        reflectivity2(beams),
+        listed_(beams) {}
 
   size_t size() const { return range_m.size(); }
+
+  // The beams with a return (range_m != 0) when the chain last listed them, in beam order. The
+  // chain lists them before the first effect and again after any effect that may add returns
+  // (Effect::adds_returns), so the list holds every return; returns since removed are in it with
+  // range 0. Effects that act on returns only walk this list: from the drone's pose a fifth of a
+  // column returns, and walking all 128 beams per effect cost more than the returns themselves.
+  std::span<const uint32_t> listed_returns() const { return {listed_.data(), listed_count_}; }
+  void list_returns() {
+    listed_.resize(size());
+    size_t n = 0;
+    for (size_t beam = 0; beam < size(); ++beam) {  // without a branch: returns and misses interleave
+      listed_[n] = static_cast<uint32_t>(beam);
+      n += range_m[beam] != 0.0f;
+    }
+    listed_count_ = n;
+  }
   Measurement operator[](size_t beam) const {
     return {range_m[beam],  signal_photons[beam],  near_ir_photons[beam], reflectivity[beam],
             range2_m[beam], signal2_photons[beam], reflectivity2[beam]};
@@ -45,6 +63,10 @@ struct MeasuredColumn {
   std::vector<float> range2_m;
   std::vector<float> signal2_photons;
   std::vector<float> reflectivity2;
+
+ private:
+  std::vector<uint32_t> listed_;
+  size_t listed_count_ = 0;
 };
 
 // The distribution of the measured range of one pixel given its ideal return, as the analysis
