@@ -32,8 +32,7 @@ class SignalPrecision final : public TabledEffect<SignalPrecision, SignalPrecisi
 
   std::vector<std::string_view> prerequisites() const override { return {"radiometry"}; }
 
-  void simulate(std::span<const IdealReturn>, const ColumnContext& context,
-                MeasuredColumn& measured) const override {
+  void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const ColumnStreams streams = column_streams(context);
     float* range = measured.range_m.data();
     for (const uint32_t beam : measured.listed_returns()) {

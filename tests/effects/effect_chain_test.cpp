@@ -99,3 +99,32 @@ TEST(EffectChain, ReplacingKeepsOtherEffectsNoise) {
   EXPECT_EQ(longer.effects().size(), 4u);
   EXPECT_NE(longer.effects()[3]->stream_id(), noise.stream_id());  // a new place, a new stream
 }
+
+// Effects that act on returns walk the chain's list of them; a return an earlier effect added (a
+// false alarm on a sky pixel, E14) is listed again, so the noise after it moves it too, and a
+// return dropped earlier is left alone.
+TEST(EffectChain, ReturnsAddedByAnEffectGetTheLaterEffects) {
+  const json radiometry = {{"name", "radiometry"}, {"sky_photons", 1000.0}};
+  const json alarms = {{"name", "false_alarms"}, {"probability_at_reference", 0.5}};
+  const json noise = {{"name", "range_noise_linear"}, {"sigma0_m", 0.5}, {"sigma_max_m", 0.5}, {"range_max_m", 100.0}};
+  const EffectChain without = chain_of(json::array({radiometry, alarms}));
+  const EffectChain with = chain_of(json::array({radiometry, alarms, noise}));
+  std::vector<IdealReturn> column(kBeams);  // sky: no hits
+  for (size_t b = 0; b < kBeams; b += 2) column[b] = surface(20.0f);
+  int alarms_seen = 0, moved = 0;
+  for (uint32_t c = 0; c < 64; ++c) {
+    ColumnContext context;
+    context.column = c;
+    std::vector<Measurement> a(kBeams), b(kBeams);
+    without.simulate(column, context, a);
+    with.simulate(column, context, b);
+    for (size_t beam = 1; beam < kBeams; beam += 2) {
+      ASSERT_EQ(a[beam].range_m == 0.0f, b[beam].range_m == 0.0f) << "false alarms differ at beam " << beam;
+      if (a[beam].range_m == 0.0f) continue;
+      ++alarms_seen;
+      moved += a[beam].range_m != b[beam].range_m;
+    }
+  }
+  EXPECT_GT(alarms_seen, 1000);
+  EXPECT_EQ(moved, alarms_seen) << "the noise skipped returns added after the chain listed them";
+}
