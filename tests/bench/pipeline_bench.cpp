@@ -1,6 +1,6 @@
 // The emulator's speed against raw Embree (DESIGN.md "Speed: what raw Embree means here"), for an
-// OS1-128 at 2048x10 in scenes/plant.glb, from two poses: the drone's inspection lap (about 41 %
-// of rays return) and standing 1.7 m above the ground among the plant's structures (about 90 %):
+// OS1-128 at 2048x10 in scenes/plant.glb, from two poses: the drone's inspection lap (21 % of the
+// points carry a return) and standing 1.7 m above the ground among the plant's structures (83 %):
 //   (a) raw reference: the same world rays, each column's 128 beams as 16-ray packets through
 //       rtcIntersect16 with RTC_INTERSECT_CONTEXT_FLAG_COHERENT, all cores (rays prebuilt, only
 //       the packet copy and the intersect are timed);
