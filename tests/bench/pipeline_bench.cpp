@@ -310,9 +310,9 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
   }
 }
 
-// Effect chains on the same sensor, scene and rays, (c) / (a) each: the paper's linear law (the
-// chain of profiles/os1-32-paper.json), the OS1-128 datasheet profile's, and every library effect
-// on at once (mixed_pixels casts the columns beside each packet's block as well).
+// Effect chains on the same sensor, scene and rays, (c) / (a) each, from each pose: the paper's
+// linear law (the chain of profiles/os1-32-paper.json), the OS1-128 datasheet profile's, and every
+// library effect on at once (mixed_pixels casts the columns beside each packet's block as well).
 void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats) {
   const nlohmann::json every = test::every_effect_chain(s.profile.effects[1]);  // the datasheet's piecewise sigma(r)
   const std::pair<const char*, nlohmann::json> chains[] = {
@@ -361,6 +361,10 @@ int main(int argc, char** argv) {
     if (pose == "both" || std::string(scenario.name).starts_with(pose))
       run_scenario(s, scenario, frames, threads, repeats, only);
   }
-  if (only == "all") chain_ratios(s, scenarios[0], frames, threads, repeats);
+  if (only != "all") return 0;
+  for (const Scenario& scenario : scenarios) {
+    if (pose == "both" || std::string(scenario.name).starts_with(pose))
+      chain_ratios(s, scenario, frames, threads, repeats);
+  }
   return 0;
 }
