@@ -1,12 +1,15 @@
 // `lidartwin record`: a capture as a real sensor would produce it, rendered offline as fast as the
 // machine allows: DIR/capture.pcap, DIR/metadata.json and the ground truth DIR/poses.tum.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <memory>
 #include <string>
 
+#include <signal.h>
 #include <unistd.h>
+#include <csignal>
 
 #include <fmt/ranges.h>
 
@@ -119,6 +122,11 @@ class ProgressBar {
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
+// SIGINT/SIGTERM end the capture after the frame being rendered (Recording::stop).
+std::atomic<bool> stop_requested{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
+extern "C" void request_stop(int) { stop_requested.store(true); }
+
 int run_record(const RecordFlags& flags) {
   const SensorProfile profile = load_profile(flags.profile);
   const Metadata metadata = make_record_metadata(flags, profile);
@@ -127,10 +135,19 @@ int run_record(const RecordFlags& flags) {
   EffectChain chain = flags.ideal ? ideal_chain(profile)
                                   : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   const ProgressBar bar(flags.frames, metadata.format.fps);
-  record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
-          flags.out, flags.ideal ? ImuNoise{} : profile.imu, flags.uptime_s},
-         [&bar](int done) { bar.update(done); });
-  return 0;
+  struct sigaction action {};
+  action.sa_handler = request_stop;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  const int frames =
+      record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
+              flags.out, flags.ideal ? ImuNoise{} : profile.imu, flags.uptime_s, &stop_requested},
+             [&bar](int done) { bar.update(done); });
+  if (frames == flags.frames) return 0;
+  std::fprintf(stderr, "\nrecord: interrupted after %d of %d frames; %s holds them, every file complete\n", frames,
+               flags.frames, flags.out.c_str());
+  return 130;  // the shell's code for an interrupted command (128 + SIGINT)
 }
 
 void setup_record(CLI::App& app, std::function<int()>& run) {

@@ -154,7 +154,7 @@ StampedPose frame_start_pose(const ForwardModel& model, const PoseSource& poses,
 }  // namespace
 
 // Each frame's packets are written as they come out of the forward model (CaptureWriter).
-void record(const Recording& recording, const std::function<void(int frames_done)>& progress) {
+int record(const Recording& recording, const std::function<void(int frames_done)>& progress) {
   std::filesystem::create_directories(recording.out_dir);
   write_metadata(recording.metadata, recording.out_dir / "metadata.json");
   WorkerPool pool(recording.threads);
@@ -162,7 +162,9 @@ void record(const Recording& recording, const std::function<void(int frames_done
   CaptureWriter capture(model, recording.out_dir);
   EncodedFrame encoded = model.make_frame_buffer();
   std::vector<StampedPose> poses;
-  for (int k = 0; k < recording.frames; ++k) {
+  int frames = 0;
+  for (int k = 0; k < recording.frames; ++k, ++frames) {
+    if (recording.stop != nullptr && recording.stop->load()) break;
     const auto frame = static_cast<uint64_t>(k);
     capture.begin_frame(frame, encoded);
     model.render(frame, encoded, [&capture](size_t index) { capture.packet_ready(index); });
@@ -172,11 +174,11 @@ void record(const Recording& recording, const std::function<void(int frames_done
   }
   // And the pose where the last frame ends, so the file spans every column of the capture (compare
   // reads it as the trajectory of a record directory).
-  poses.push_back(frame_start_pose(model, recording.poses, static_cast<uint64_t>(recording.frames)));
-  capture.write_imu_until(model.clock().origin_ns +
-                          model.clock().frame_start_ns(static_cast<uint64_t>(recording.frames)));
+  poses.push_back(frame_start_pose(model, recording.poses, static_cast<uint64_t>(frames)));
+  capture.write_imu_until(model.clock().origin_ns + model.clock().frame_start_ns(static_cast<uint64_t>(frames)));
   capture.close();
   write_tum(recording.out_dir / "poses.tum", poses);
+  return frames;
 }
 
 }  // namespace lidartwin

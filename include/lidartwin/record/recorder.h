@@ -2,6 +2,7 @@
 // A capture recorded offline, as `lidartwin record` makes it: the forward model renders frames as
 // fast as the machine allows and they are written as a real sensor's capture: capture.pcap (lidar on 7502, LEGACY IMU
 // on 7503), metadata.json and poses.tum.
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -31,6 +32,10 @@ struct Recording {
   // The sensor's time since power-on when frame 0 starts: TIME_FROM_INTERNAL_OSC counts from
   // power-on (protocol doc 6.3), so a real capture never starts at 0 ns.
   double uptime_s = kDefaultUptimeS;
+  // When set (a signal handler's flag), the capture ends after the frame being rendered, every file
+  // complete up to it: the capture is written in blocks, so stopping the process itself would lose
+  // the last ones and cut a record short.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 // Times: frame k starts at pose time t0 + k / fps, t0 = poses.start_s(), and column m of it is
@@ -42,7 +47,8 @@ struct Recording {
 // poses.tum: one row per frame, world_from_sensor at the frame's column 0, stamped with that
 // column's timestamp in seconds, plus one where the last frame ends; column_poses.tum: the pose
 // each observed column was cast from, at its timestamp.
-// progress(frames_done) is called after each frame.
-void record(const Recording& recording, const std::function<void(int frames_done)>& progress);
+// progress(frames_done) is called after each frame. Returns the frames recorded: `frames`, or fewer
+// if `stop` was set.
+int record(const Recording& recording, const std::function<void(int frames_done)>& progress);
 
 }  // namespace lidartwin

@@ -1,0 +1,95 @@
+// `lidartwin record` stopped by SIGINT or SIGTERM ends after the frame it is rendering and leaves a
+// complete capture of the frames before: every pcap record whole (the capture is written in 4 MiB
+// blocks, which a killed process would cut mid-record), the ground truth files of those frames.
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <thread>
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "lidartwin/pcap/pcap.h"
+#include "support/record_capture.h"
+
+namespace lidartwin {
+namespace {
+
+using ::testing::HasSubstr;
+
+struct Interrupted {
+  int exit_code = -1;
+  std::string error;
+};
+
+// Starts a record far longer than the test, lets it write for a while, then sends `signal`.
+Interrupted record_then(int signal, const std::filesystem::path& out) {
+  const std::filesystem::path err = out.string() + ".stderr";
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, STDERR_FILENO);
+    const std::string scene = std::string(LIDARTWIN_SOURCE_DIR) + "/scenes/calibration_hall.glb";
+    execl(LIDARTWIN_BINARY, LIDARTWIN_BINARY, "record", "--profile", "os1-64", "--scene", scene.c_str(), "--pose",
+          "0 0 1.5 0 0 0 1", "--frames", "1000000", "--threads", "1", "--out", out.c_str(), nullptr);
+    _exit(127);
+  }
+  // Until several blocks are on disk (the first after about 4 MiB: some 20 frames of OS1-64).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  const auto written = [&out] {
+    std::error_code missing;
+    const std::uintmax_t size = std::filesystem::file_size(out / "capture.pcap", missing);
+    return missing ? 0 : size;
+  };
+  while (written() < (std::uintmax_t{12} << 20) && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  kill(pid, signal);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  std::ifstream in(err);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status),
+          {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()}};
+}
+
+class RecordInterrupted : public ::testing::TestWithParam<int> {};
+
+TEST_P(RecordInterrupted, LeavesACompleteCaptureOfTheFramesBefore) {
+  const auto out = std::filesystem::temp_directory_path() /
+                   ("lidartwin_interrupt_" + std::to_string(getpid()) + "_" + std::to_string(GetParam()));
+  std::filesystem::remove_all(out);
+  const Interrupted run = record_then(GetParam(), out);
+  EXPECT_EQ(run.exit_code, 130) << run.error;
+  EXPECT_THAT(run.error, HasSubstr("interrupted after"));
+  const auto poses = test::read_poses(out / "poses.tum");
+  ASSERT_GE(poses.size(), 2u);
+  const size_t frames = poses.size() - 1;  // a row per frame, and one where the last frame ends
+  EXPECT_GE(frames, 15u);                  // 12 MiB were on disk: 15 frames of 64 packets of 13 KB
+  EXPECT_LT(frames, 1000000u);
+  // Every datagram whole (the reader throws on a cut record), every frame's 64 packets there, and
+  // a pose per observed column of them (OS1-64 at 1024x10: 1024 columns, 16 to a packet).
+  PcapStats stats;
+  const std::vector<UdpDatagram> datagrams = read_pcap(out / "capture.pcap", stats);
+  EXPECT_EQ(stats.incomplete_datagrams, 0u);
+  size_t lidar = 0;
+  for (const UdpDatagram& d : datagrams) lidar += d.dst_port == 7502;
+  EXPECT_EQ(lidar, frames * 64);
+  EXPECT_EQ(test::read_poses(out / "column_poses.tum").size(), frames * 1024);
+  std::filesystem::remove_all(out);
+  std::filesystem::remove(out.string() + ".stderr");
+}
+
+INSTANTIATE_TEST_SUITE_P(Signals, RecordInterrupted, ::testing::Values(SIGINT, SIGTERM),
+                         [](const ::testing::TestParamInfo<int>& signal) {
+                           return std::string(signal.param == SIGINT ? "SIGINT" : "SIGTERM");
+                         });
+
+}  // namespace
+}  // namespace lidartwin
