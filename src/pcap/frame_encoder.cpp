@@ -20,12 +20,21 @@ constexpr uint8_t kProtocolUdp = 17;
 // The ones'-complement sum of the big-endian 16-bit words of bytes, added to sum (not folded).
 // RFC 1071 2(B): the sum can be taken in the machine's byte order and swapped at the end, so eight
 // bytes are added at a time (the checksum runs over every byte `record` writes; byte pairs ran at
-// about 1 GB/s). Adding 32-bit halves into 64 bits cannot overflow for a datagram (< 2^17 adds).
+// about 1 GB/s), into four sums that do not wait for each other (one ran at an add's latency per
+// word). Adding 32-bit halves into 64 bits cannot overflow for a datagram (< 2^17 adds).
 uint32_t add_words(std::span<const uint8_t> bytes, uint32_t sum) {
   const uint8_t* p = bytes.data();
   const size_t n = bytes.size();
   size_t i = 0;
-  uint64_t wide = 0;
+  uint64_t lanes[4] = {};
+  for (; i + 32 <= n; i += 32) {
+    for (size_t k = 0; k < 4; ++k) {
+      uint64_t word;
+      std::memcpy(&word, p + i + 8 * k, 8);
+      lanes[k] += (word & 0xFFFF'FFFFu) + (word >> 32);
+    }
+  }
+  uint64_t wide = lanes[0] + lanes[1] + lanes[2] + lanes[3];
   for (; i + 8 <= n; i += 8) {
     uint64_t word;
     std::memcpy(&word, p + i, 8);
