@@ -80,10 +80,12 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
 // of them, a store-forwarding stall per pixel that was 70 % of the caster's own time).
 constexpr IdealReturn kNoReturn{};
 
-void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, int first_row,
+// Returns whether any of the hits is retroreflective.
+bool read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, int first_row,
                std::span<IdealReturn> out) {
   alignas(64) float cos_incidence[kLanes];
   incidence_lanes(packet, cos_incidence);
+  bool retro = false;
   for (size_t i = 0; i < out.size(); ++i) {
     IdealReturn& ideal = out[i];
     ideal = kNoReturn;
@@ -97,7 +99,9 @@ void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* opt
     ideal.specular = material.specular;
     ideal.material_id = geom_id;
     ideal.retroreflective = material.retroreflective;
+    retro |= material.retroreflective != 0;
   }
+  return retro;
 }
 
 }  // namespace
@@ -207,16 +211,18 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
     const size_t bytes = sizeof(RayPacket16) * static_cast<size_t>(geometry_.packets_per_column());
     for (size_t offset = 0; offset < bytes; offset += 64) __builtin_prefetch(next + offset, 0, 2);
   }
+  bool retro = false;
   for (int k = 0; k < geometry_.packets_per_column(); ++k) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];
     fill_packet(rays[k], world, max_range_m_, packet, valid);
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    read_hits(packet, optics_.data(), rays[k].first_row,
-              out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
+    retro |= read_hits(packet, optics_.data(), rays[k].first_row,
+                       out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
   }
   mark_vertical_edges(out);
-  mark_retro_neighbours(out);
+  // Without a retroreflector in the column every pixel keeps kNoReturn's "none near" (most columns).
+  if (retro) mark_retro_neighbours(out);
 }
 
 }  // namespace lidartwin
