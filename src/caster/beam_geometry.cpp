@@ -64,8 +64,8 @@ LutConstants lut_constants(const BeamIntrinsics& beams) {
 struct PixelAzimuth {
   double cos, sin;
 };
-PixelAzimuth pixel_azimuth(const RowAngles& row, const ColumnAngles& column) {
-  const double angle = column.theta_e + row.theta_a;
+PixelAzimuth pixel_azimuth(double theta_a, const ColumnAngles& column) {
+  const double angle = column.theta_e + theta_a;
   return {std::cos(angle), std::sin(angle)};
 }
 
@@ -82,7 +82,7 @@ SdkLutEntry lut_entry(const LutConstants& k, const RowAngles& row, const ColumnA
 SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id) {
   const RowAngles row_angle = row_angles(beams, row);
   const ColumnAngles column = column_angles(columns_per_frame, measurement_id);
-  return lut_entry(lut_constants(beams), row_angle, column, pixel_azimuth(row_angle, column));
+  return lut_entry(lut_constants(beams), row_angle, column, pixel_azimuth(row_angle.theta_a, column));
 }
 
 BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
@@ -112,7 +112,7 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
   const auto range_offset = static_cast<float>(kRangeUnit * constants.n);
   for (int m = 0; m < columns_; ++m) {
     const ColumnAngles column = column_angles(columns_, m);
-    for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth({offsets[k], 0.0, 0.0}, column);
+    for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth(offsets[k], column);
     RayPacket16* packet = &packets_[static_cast<size_t>(m * packets_per_column_)];
     for (int first = 0; first < rows_; first += RayPacket16::kLanes, ++packet) {
       packet->first_row = first;

@@ -162,15 +162,15 @@ int record(const Recording& recording, const std::function<void(int frames_done)
   CaptureWriter capture(model, recording.out_dir);
   EncodedFrame encoded = model.make_frame_buffer();
   std::vector<StampedPose> poses;
-  int frames = 0;
-  for (int k = 0; k < recording.frames; ++k, ++frames) {
+  int frames = 0;  // recorded
+  for (; frames < recording.frames; ++frames) {
     if (recording.stop != nullptr && recording.stop->load()) break;
-    const auto frame = static_cast<uint64_t>(k);
+    const auto frame = static_cast<uint64_t>(frames);
     capture.begin_frame(frame, encoded);
     model.render(frame, encoded, [&capture](size_t index) { capture.packet_ready(index); });
     capture.end_frame();
     poses.push_back(frame_start_pose(model, recording.poses, frame));
-    progress(k + 1);
+    progress(frames + 1);
   }
   // And the pose where the last frame ends, so the file spans every column of the capture (compare
   // reads it as the trajectory of a record directory).
