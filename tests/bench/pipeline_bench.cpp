@@ -25,6 +25,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -230,11 +231,14 @@ PipelineRate pipeline(const Setup& s, const ForwardModel& model, int frames, int
 
 EffectChain chain_of(const Setup& s) { return EffectChain::from_json(s.profile.effects, "os1-128"); }
 
-// (d): what `lidartwin record` runs, into a temporary directory.
-Rate record_path(const Setup& s, const PoseSource& poses, int frames, int threads) {
+// (d): what `lidartwin record` runs, into a temporary directory (with the profile's chain unless
+// told another).
+Rate record_path(const Setup& s, const PoseSource& poses, int frames, int threads,
+                 const std::optional<EffectChain>& chain = std::nullopt) {
   const auto dir = std::filesystem::temp_directory_path() / "lidartwin_pipeline_bench";
   const Stopwatch watch;
-  record({s.scene, poses, s.profile.max_range_m, chain_of(s), s.metadata, 1, threads, frames, dir}, [](int) {});
+  record({s.scene, poses, s.profile.max_range_m, chain.value_or(chain_of(s)), s.metadata, 1, threads, frames, dir},
+         [](int) {});
   const Rate rate =
       watch.rate(static_cast<double>(frames) * s.format().columns_per_frame * s.format().pixels_per_column, threads);
   std::filesystem::remove_all(dir);
@@ -270,7 +274,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     best.wall_per_s = std::max(best.wall_per_s, r.wall_per_s);
     best.cpu_per_s = std::max(best.cpu_per_s, r.cpu_per_s);
   };
-  std::vector<double> pipeline_ratios, record_ratios;
+  std::vector<double> pipeline_ratios, record_ratios, floor_ratios;
   for (int r = 0; r < repeats; ++r) {
     const Rate a = only_pipeline ? Rate{} : raw_packets(s, rays, threads);
     const PipelineRate p = pipeline(s, model, frames, threads);
@@ -278,6 +282,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     pipe.return_share = p.return_share;
     if (only_pipeline) continue;
     const Rate d = record_path(s, *scenario.poses, frames, threads);
+    floor_ratios.push_back(record_path(s, *scenario.poses, frames, threads, EffectChain()).wall_per_s / a.wall_per_s);
     keep_best(raw16, a);
     keep_best(recorded, d);
     pipeline_ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);
@@ -307,15 +312,18 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     std::printf("ratio (d) record / raw (a):   median %.3f (min %.3f, max %.3f; target 0.8)\n", median(record_ratios),
                 *std::min_element(record_ratios.begin(), record_ratios.end()),
                 *std::max_element(record_ratios.begin(), record_ratios.end()));
+    std::printf("    the same without any effect (the floor): median %.3f\n", median(floor_ratios));
   }
 }
 
-// Effect chains on the same sensor, scene and rays, (c) / (a) each, from each pose: the paper's
+// Effect chains on the same sensor, scene and rays, (c) / (a) each, from each pose: none (what
+// the cast, the column bookkeeping and the encoding cost without any effect), the paper's
 // linear law (the chain of profiles/os1-32-paper.json), the OS1-128 datasheet profile's, and every
 // library effect on at once (mixed_pixels casts the columns beside each packet's block as well).
 void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats) {
   const nlohmann::json every = test::every_effect_chain(s.profile.effects[1]);  // the datasheet's piecewise sigma(r)
   const std::pair<const char*, nlohmann::json> chains[] = {
+      {"none (cast, encode: the floor)", nlohmann::json::array()},
       {"paper (os1-32-paper's chain)", load_profile("os1-32-paper").effects},
       {"datasheet (os1-128's chain)", s.profile.effects},
       {"every effect on", every},
