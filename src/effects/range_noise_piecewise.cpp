@@ -5,6 +5,7 @@
 // the table's values joined by short ramps at the bin edges (see profiles/os1-64.json).
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -64,22 +65,41 @@ class RangeNoisePiecewise final : public GaussianRangeNoise<RangeNoisePiecewise,
   static constexpr std::string_view kName = "range_noise_piecewise";
 
   explicit RangeNoisePiecewise(std::vector<Knot> knots) : knots_(std::move(knots)) {
-    for (size_t k = 0; k + 1 < knots_.size(); ++k) {
-      slopes_.push_back((knots_[k + 1].sigma_m - knots_[k].sigma_m) / (knots_[k + 1].range_m - knots_[k].range_m));
+    // Segment 0 holds r <= the first knot, segment i (1 <= i < n) lies between knots i - 1 and i,
+    // segment n holds r >= the last knot; r leaves segment i for i + 1 where r > bounds_[i].
+    const size_t n = knots_.size();
+    segments_.push_back({knots_.front().sigma_m, 0.0, knots_.front().range_m});
+    for (size_t k = 0; k + 1 < n; ++k) {
+      const double slope = (knots_[k + 1].sigma_m - knots_[k].sigma_m) / (knots_[k + 1].range_m - knots_[k].range_m);
+      segments_.push_back({knots_[k].sigma_m, slope, knots_[k].range_m});
+      bounds_.push_back(knots_[k].range_m);
     }
-    for (uint32_t b = 0; b < first_segment_.size(); ++b) {
-      first_segment_[b] = static_cast<uint8_t>(std::min<size_t>(segment_scan(0, bucket_start(b)), 255));
+    segments_.push_back({knots_.back().sigma_m, 0.0, knots_.back().range_m});
+    bounds_.push_back(std::nextafter(knots_.back().range_m, -HUGE_VAL));  // r >= the last knot
+    for (uint32_t b = 0; b < kBuckets; ++b) {
+      const double lower = b == 0 ? -HUGE_VAL : bucket_start(b);
+      const double upper = b + 1 == kBuckets ? HUGE_VAL : bucket_start(b + 1);
+      const auto below = std::lower_bound(bounds_.begin(), bounds_.end(), lower);
+      const auto inside = std::lower_bound(below, bounds_.end(), upper);
+      first_segment_[b] = static_cast<uint32_t>(below - bounds_.begin());
+      bounds_per_bucket_ = std::max(bounds_per_bucket_, static_cast<size_t>(inside - below));
     }
+    bounds_.resize(bounds_.size() + bounds_per_bucket_, HUGE_VAL);  // the last bucket's comparisons read past
   }
 
   std::string_view name() const override { return kName; }
 
+  // The segment from its bucket's first and a fixed count of comparisons, added, not branched on:
+  // ranges in a column jump between floor, walls and sky, and a search by branches mispredicted
+  // (a fifth of the effect's time from the ground pose). The two outer segments have slope 0, so
+  // they give the end knots' sigma exactly.
   double sigma(float range_m) const {
     const double r = static_cast<double>(range_m);
-    if (r <= knots_.front().range_m) return knots_.front().sigma_m;
-    if (r >= knots_.back().range_m) return knots_.back().sigma_m;
-    const size_t k = segment_scan(first_segment_[bucket(range_m)], r);
-    return knots_[k].sigma_m + slopes_[k] * (r - knots_[k].range_m);
+    size_t i = first_segment_[bucket(range_m)];
+    const double* bound = bounds_.data() + i;
+    for (size_t k = 0; k < bounds_per_bucket_; ++k) i += static_cast<size_t>(r > bound[k]);
+    const Segment& s = segments_[i];
+    return s.sigma_m + s.slope * (r - s.range_m);
   }
 
   // Knot ranges are structure (fixed); the sigmas are what a fit adjusts.
@@ -104,9 +124,10 @@ class RangeNoisePiecewise final : public GaussianRangeNoise<RangeNoisePiecewise,
   }
 
  private:
-  // Ranges in a column jump between floor, walls and sky, so a scan from the first knot would
-  // mispredict; a bucket per eighth of an octave (by the float's exponent and top 3 mantissa
-  // bits, 2^-6 to 2^10 m) remembers the segment at its start, leaving about one comparison.
+  // A bucket per eighth of an octave (by the float's exponent and top 3 mantissa bits, 2^-6 to
+  // 2^10 m; the first and last take everything below and above) remembers the segment at its
+  // start, leaving one comparison per bound inside a bucket (one for the datasheet's knots).
+  static constexpr uint32_t kBuckets = 16 * 8 + 1;
   static constexpr uint32_t kBucketShift = 23 - 3;
   static constexpr uint32_t kMinBits = 0x3C800000u;  // 2^-6 as a float
   static uint32_t bucket(float r) {
@@ -116,15 +137,17 @@ class RangeNoisePiecewise final : public GaussianRangeNoise<RangeNoisePiecewise,
   static double bucket_start(uint32_t b) {
     return static_cast<double>(std::bit_cast<float>(kMinBits + (b << kBucketShift)));
   }
-  // The segment k (knot k to k+1) holding r, searching forward from `k`.
-  size_t segment_scan(size_t k, double r) const {
-    while (k + 2 < knots_.size() && r > knots_[k + 1].range_m) ++k;
-    return k;
-  }
+  struct Segment {
+    double sigma_m;  // at range_m
+    double slope;
+    double range_m;
+  };
 
   std::vector<Knot> knots_;
-  std::vector<double> slopes_;
-  std::array<uint8_t, 16 * 8 + 1> first_segment_{};
+  std::vector<Segment> segments_;  // n + 1 for n knots
+  std::vector<double> bounds_;     // n, then +inf padding
+  std::array<uint32_t, kBuckets> first_segment_{};
+  size_t bounds_per_bucket_ = 0;  // the most bounds inside one bucket
 };
 
 }  // namespace

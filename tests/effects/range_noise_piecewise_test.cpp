@@ -46,3 +46,38 @@ TEST(RangeNoisePiecewise, SamplesMatchPrediction) {
                      p.p_detect, label("range_noise_piecewise", r));
   }
 }
+
+// The segment search is a table and a count of comparisons; it must give the sigma of a plain
+// search from the first knot, at knots, next to them, and beyond both ends, whatever the spacing
+// (several knots within one eighth of an octave, knots below 2^-6 m and above 2^10 m). Equal to
+// rounding: the library may fuse the multiply-add where this test does not.
+TEST(RangeNoisePiecewise, SigmaIsExactlyThatOfAPlainSearch) {
+  const json close_knots = json::parse(
+      "[[0.001, 0.5], [0.004, 0.2], [0.01, 0.3], [1.0, 0.01], [1.01, 0.02], [1.02, 0.015], [1.03, 0.04],"
+      " [1.04, 0.02], [300, 0.1], [2000, 0.3], [9000, 0.2]]");
+  for (const json& knots : {kKnotsOs0, kKnotsOs1, close_knots}) {
+    const auto plain_sigma = [&knots](float range_m) {
+      const double r = static_cast<double>(range_m);
+      const size_t n = knots.size();
+      const auto at = [&knots](size_t k, int c) { return knots[k][c].get<double>(); };
+      if (r <= at(0, 0)) return at(0, 1);
+      if (r >= at(n - 1, 0)) return at(n - 1, 1);
+      size_t k = 0;
+      while (k + 2 < n && r > at(k + 1, 0)) ++k;
+      const double slope = (at(k + 1, 1) - at(k, 1)) / (at(k + 1, 0) - at(k, 0));
+      return at(k, 1) + slope * (r - at(k, 0));
+    };
+    std::vector<float> ranges{0.0001f, 0.3f, 50.0f, 5000.0f, 20000.0f};
+    for (const auto& knot : knots) {
+      const float r = knot[0].get<float>();
+      ranges.insert(ranges.end(), {r, std::nextafter(r, 0.0f), std::nextafter(r, 1e9f), r * 1.001f, r * 0.999f});
+    }
+    for (float r = 0.01f; r < 12000.0f; r *= 1.0137f) ranges.push_back(r);
+    const EffectChain chain = chain_of(json::array({piecewise(knots)}));
+    for (const float r : ranges) {
+      const double sigma = plain_sigma(r);
+      EXPECT_NEAR(chain.predict(surface(r), {}).variance_m2, sigma * sigma, 1e-12 * sigma * sigma)
+          << "r = " << r << ", knots " << knots.dump();
+    }
+  }
+}
