@@ -14,7 +14,9 @@
 // signal gain does not scale it (the laser's multiplier adds no sunlight).
 // The channels are expected values, without shot noise: effects that depend on the signal
 // (dropout, E5) then see in simulate exactly what predict reports, and simulate/predict agree.
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 #include "effects/builtin_effects.h"
 #include "effects/log_spaced_table.h"
@@ -84,7 +86,17 @@ class Radiometry final : public TabledEffect<Radiometry, RadiometryParameters> {
   void simulate(std::span<const IdealReturn> ideal, const ColumnContext& context,
                 MeasuredColumn& measured) const override {
     const float gain = column_gain(context);
-    for (size_t beam = 0; beam < ideal.size(); ++beam) measured.near_ir_photons[beam] = near_ir(ideal[beam]);
+    // near_ir() for every beam as a select on bit patterns, not a branch (hits and sky interleave
+    // in a column), with the parameters in registers: the stores may alias them otherwise.
+    const auto ambient = std::bit_cast<uint32_t>(static_cast<float>(params().ambient_photons));
+    const auto sky = std::bit_cast<uint32_t>(static_cast<float>(params().sky_photons));
+    float* __restrict near_ir = measured.near_ir_photons.data();
+    for (size_t beam = 0; beam < ideal.size(); ++beam) {
+      const IdealReturn& in = ideal[beam];
+      const uint32_t hit = 0u - static_cast<uint32_t>(std::bit_cast<int32_t>(in.range_m) > 0);  // hit(): range > 0
+      const auto lit = std::bit_cast<uint32_t>(std::bit_cast<float>(ambient) * in.reflectivity);
+      near_ir[beam] = std::bit_cast<float>((lit & hit) | (sky & ~hit));
+    }
     for (const uint32_t beam : measured.listed_returns()) {
       const IdealReturn& in = ideal[beam];
       if (!in.hit() || measured.range_m[beam] == 0.0f) continue;  // no return: no signal, no reflectivity
