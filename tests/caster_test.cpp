@@ -254,5 +254,44 @@ TEST_F(ColumnCasterScene, HitsTheWallWhereTheSdkPutsTheRange) {
   EXPECT_GT(hits, 1000);
 }
 
+// Columns cast together share packets (four rows of four columns); the returns must be those of
+// each column cast alone, whatever the group: four neighbours, fewer, columns apart, each from its
+// own pose. On the plant, where rays hit many surfaces at all depths.
+TEST(ColumnCasterPlant, ColumnsCastTogetherReturnWhatEachReturnsAlone) {
+  const Scene scene = Scene::load(std::filesystem::path(LIDARTWIN_SOURCE_DIR) / "scenes/plant.glb");
+  const BeamIntrinsics beams = sample_beams();
+  const BeamGeometry geometry(beams, 2048);
+  const ColumnCaster caster(scene, geometry, 100.0f);
+  const std::vector<int> ids{100, 101, 102, 103, 104, 105, 106, 900, 901, 1500, 7};
+  std::vector<std::vector<IdealReturn>> together(ids.size(), std::vector<IdealReturn>(128));
+  std::vector<Pose> poses(ids.size());
+  std::vector<ColumnCaster::Column> columns;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    // At head height under the racks, a little further along for each column.
+    poses[i].translation = {15.0 + 0.01 * static_cast<double>(i), 9.0, 1.7};
+    poses[i].rotation = Eigen::AngleAxisd(0.02 * static_cast<double>(i), Eigen::Vector3d::UnitZ());
+    columns.push_back({ids[i], &poses[i], together[i]});
+  }
+  caster.cast(columns);
+  std::vector<IdealReturn> alone(128);
+  int hits = 0;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    caster.cast(ids[i], poses[i], alone);
+    for (size_t r = 0; r < 128; ++r) {
+      const IdealReturn& a = alone[r];
+      const IdealReturn& t = together[i][r];
+      hits += a.hit();
+      EXPECT_EQ(t.range_m, a.range_m) << "column " << ids[i] << " row " << r;
+      EXPECT_EQ(t.cos_incidence, a.cos_incidence) << "column " << ids[i] << " row " << r;
+      EXPECT_EQ(t.material_id, a.material_id) << "column " << ids[i] << " row " << r;
+      EXPECT_EQ(t.reflectivity, a.reflectivity) << "column " << ids[i] << " row " << r;
+      EXPECT_EQ(t.beam, r) << "column " << ids[i];
+      EXPECT_EQ(t.edge, a.edge) << "column " << ids[i] << " row " << r;
+      EXPECT_EQ(t.retro_rows, a.retro_rows) << "column " << ids[i] << " row " << r;
+    }
+  }
+  EXPECT_GT(hits, 1000) << "the test needs returns to compare";
+}
+
 }  // namespace
 }  // namespace lidartwin

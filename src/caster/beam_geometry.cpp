@@ -77,6 +77,33 @@ SdkLutEntry lut_entry(const LutConstants& k, const RowAngles& row, const ColumnA
   return {k.rotation * d, kRangeUnit * (k.rotation * o + k.translation_mm)};
 }
 
+// The rows in cast order (RayQuad): sorted by azimuth offset, a gap of more than a quarter degree
+// starting a new group, each group in row order (Ouster rows fall in elevation), groups in
+// azimuth order. A sensor whose beams share one offset keeps its row order.
+std::vector<int> cast_order(const std::vector<RowAngles>& rows) {
+  constexpr double kGroupGap = 0.25 * std::numbers::pi / 180.0;
+  std::vector<int> by_azimuth(rows.size());
+  for (size_t r = 0; r < rows.size(); ++r) by_azimuth[r] = static_cast<int>(r);
+  std::stable_sort(by_azimuth.begin(), by_azimuth.end(), [&rows](int a, int b) {
+    return rows[static_cast<size_t>(a)].theta_a < rows[static_cast<size_t>(b)].theta_a;
+  });
+  std::vector<int> order;
+  for (size_t begin = 0; begin < by_azimuth.size();) {
+    size_t end = begin + 1;
+    while (end < by_azimuth.size() && rows[static_cast<size_t>(by_azimuth[end])].theta_a -
+                                              rows[static_cast<size_t>(by_azimuth[end - 1])].theta_a <=
+                                          kGroupGap) {
+      ++end;
+    }
+    std::vector<int> group(by_azimuth.begin() + static_cast<std::ptrdiff_t>(begin),
+                           by_azimuth.begin() + static_cast<std::ptrdiff_t>(end));
+    std::sort(group.begin(), group.end());
+    order.insert(order.end(), group.begin(), group.end());
+    begin = end;
+  }
+  return order;
+}
+
 }  // namespace
 
 SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id) {
@@ -104,29 +131,33 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
         static_cast<size_t>(std::lower_bound(offsets.begin(), offsets.end(), row.theta_a) - offsets.begin()));
   }
   std::vector<PixelAzimuth> azimuths(offsets.size());
-  // Written lane by lane straight into the packets, the only copy kept (4 KiB a column). Each
+  // Written lane by lane straight into the quads, the only copy kept (3.5 KiB a column). Each
   // float is converted from its own double: Eigen's cast of a whole vector read the entry back
   // with wider loads than the stores that wrote it, a store-forwarding stall per ray.
-  packets_per_column_ = (rows_ + RayPacket16::kLanes - 1) / RayPacket16::kLanes;
-  packets_.resize(static_cast<size_t>(columns_ * packets_per_column_));
+  const std::vector<int> order = cast_order(rows);
+  quads_per_column_ = (rows_ + RayQuad::kLanes - 1) / RayQuad::kLanes;
+  quads_.resize(static_cast<size_t>(columns_ * quads_per_column_));
+  slot_of_row_.resize(static_cast<size_t>(rows_));
+  for (int slot = 0; slot < rows_; ++slot) slot_of_row_[static_cast<size_t>(order[static_cast<size_t>(slot)])] = slot;
   const auto range_offset = static_cast<float>(kRangeUnit * constants.n);
   for (int m = 0; m < columns_; ++m) {
     const ColumnAngles column = column_angles(columns_, m);
     for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth(offsets[k], column);
-    RayPacket16* packet = &packets_[static_cast<size_t>(m * packets_per_column_)];
-    for (int first = 0; first < rows_; first += RayPacket16::kLanes, ++packet) {
-      packet->first_row = first;
-      packet->count = std::min(RayPacket16::kLanes, rows_ - first);
-      for (int i = 0; i < RayPacket16::kLanes; ++i) {
-        const auto r = static_cast<size_t>(first + std::min(i, packet->count - 1));  // lanes past the end repeat
+    RayQuad* quad = &quads_[static_cast<size_t>(m * quads_per_column_)];
+    for (int first = 0; first < rows_; first += RayQuad::kLanes, ++quad) {
+      quad->count = std::min(RayQuad::kLanes, rows_ - first);
+      for (int i = 0; i < RayQuad::kLanes; ++i) {
+        const int row = order[static_cast<size_t>(first + std::min(i, quad->count - 1))];  // lanes past the end repeat
+        const auto r = static_cast<size_t>(row);
         const SdkLutEntry entry = lut_entry(constants, rows[r], column, azimuths[offset_of_row[r]]);
-        packet->org_x[i] = static_cast<float>(entry.origin_m.x());
-        packet->org_y[i] = static_cast<float>(entry.origin_m.y());
-        packet->org_z[i] = static_cast<float>(entry.origin_m.z());
-        packet->dir_x[i] = static_cast<float>(entry.direction.x());
-        packet->dir_y[i] = static_cast<float>(entry.direction.y());
-        packet->dir_z[i] = static_cast<float>(entry.direction.z());
-        packet->tnear[i] = range_offset;
+        quad->org_x[i] = static_cast<float>(entry.origin_m.x());
+        quad->org_y[i] = static_cast<float>(entry.origin_m.y());
+        quad->org_z[i] = static_cast<float>(entry.origin_m.z());
+        quad->dir_x[i] = static_cast<float>(entry.direction.x());
+        quad->dir_y[i] = static_cast<float>(entry.direction.y());
+        quad->dir_z[i] = static_cast<float>(entry.direction.z());
+        quad->tnear[i] = range_offset;
+        quad->rows[i] = static_cast<uint16_t>(row);
       }
     }
   }
@@ -140,8 +171,9 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
 }
 
 BeamRay BeamGeometry::ray(int row, int measurement_id) const {
-  const RayPacket16& p = packets(measurement_id)[row / RayPacket16::kLanes];
-  const int i = row % RayPacket16::kLanes;
+  const int slot = slot_of_row_[static_cast<size_t>(row)];
+  const RayQuad& p = quads(measurement_id)[slot / RayQuad::kLanes];
+  const int i = slot % RayQuad::kLanes;
   return {{p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]}, p.tnear[i]};
 }
 

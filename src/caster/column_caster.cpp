@@ -1,4 +1,4 @@
-// One column of beams cast with Embree: 16-ray coherent packets, as DESIGN.md's raw reference.
+// Columns of beams cast with Embree: 16-ray coherent packets, four rows of four columns each.
 // The work around the cast is written as plain 16-lane loops so it vectorizes: the emulator's
 // budget per pixel after the cast is a few nanoseconds (DESIGN.md "Speed").
 #include "lidartwin/caster/column_caster.h"
@@ -14,7 +14,8 @@
 namespace lidartwin {
 namespace {
 
-constexpr int kLanes = RayPacket16::kLanes;
+constexpr int kLanes = 16;
+constexpr int kQuadLanes = RayQuad::kLanes;
 constexpr size_t kMaxRows = 128;  // beams of the largest Ouster sensor
 
 // A depth step between two hits: farther apart than 0.3 m or 5 % of the farther range.
@@ -22,8 +23,9 @@ bool depth_step(float a, float b) { return std::abs(a - b) > std::max(0.3f, 0.05
 
 // world_from_sensor as plain floats: rotation row-major, then translation.
 struct WorldTransform {
-  float r[9];
-  float t[3];
+  float r[9] = {};
+  float t[3] = {};
+  WorldTransform() = default;
   explicit WorldTransform(const Pose& pose) {
     const Eigen::Matrix3d m = pose.rotation.toRotationMatrix();
     for (int i = 0; i < 9; ++i) r[i] = static_cast<float>(m(i / 3, i % 3));
@@ -31,26 +33,35 @@ struct WorldTransform {
   }
 };
 
-// y = a*x0 + b*x1 + c*x2 + d over 16 lanes; restrict pointers and a fixed trip count let the
-// compiler vectorize it at -O2.
+// y = a*x0 + b*x1 + c*x2 + d over a quad's 4 lanes; restrict pointers and a fixed trip count let
+// the compiler vectorize it.
 void affine_lanes(const float* __restrict x0, const float* __restrict x1, const float* __restrict x2, const float* row,
                   float d, float* __restrict y) {
   const float a = row[0], b = row[1], c = row[2];
-  for (int i = 0; i < kLanes; ++i) y[i] = a * x0[i] + b * x1[i] + c * x2[i] + d;
+  for (int i = 0; i < kQuadLanes; ++i) y[i] = a * x0[i] + b * x1[i] + c * x2[i] + d;
 }
 
-// The sensor-frame rays of one packet into the world (protocol doc 7.2: the SDK's rays, moved by
-// the pose of this column's time).
-void fill_packet(const RayPacket16& rays, const WorldTransform& w, float tfar, RTCRayHit16& packet, int* valid) {
+// A quad's sensor-frame rays into lanes [first, first + 4) of the packet, in the world (protocol
+// doc 7.2: the SDK's rays, moved by the pose of their column's time); `count` lanes are cast.
+void fill_quad(const RayQuad& rays, const WorldTransform& w, int count, int first, RTCRayHit16& packet, int* valid) {
   RTCRay16& ray = packet.ray;
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 0, w.t[0], ray.org_x);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 3, w.t[1], ray.org_y);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 6, w.t[2], ray.org_z);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 0, 0.0f, ray.dir_x);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 3, 0.0f, ray.dir_y);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 6, 0.0f, ray.dir_z);
+  const auto f = static_cast<size_t>(first);
+  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 0, w.t[0], ray.org_x + f);
+  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 3, w.t[1], ray.org_y + f);
+  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 6, w.t[2], ray.org_z + f);
+  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 0, 0.0f, ray.dir_x + f);
+  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 3, 0.0f, ray.dir_y + f);
+  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 6, 0.0f, ray.dir_z + f);
+  for (int i = 0; i < kQuadLanes; ++i) {
+    ray.tnear[f + static_cast<size_t>(i)] = rays.tnear[i];  // start at the physical beam origin
+    valid[first + i] = i < count ? -1 : 0;
+  }
+}
+
+// The fields every lane shares.
+void init_packet(float tfar, RTCRayHit16& packet) {
+  RTCRay16& ray = packet.ray;
   for (int i = 0; i < kLanes; ++i) {
-    ray.tnear[i] = rays.tnear[i];  // start at the physical beam origin
     ray.tfar[i] = tfar;
     ray.time[i] = 0.0f;
     ray.mask[i] = 0xFFFFFFFFu;
@@ -58,7 +69,6 @@ void fill_packet(const RayPacket16& rays, const WorldTransform& w, float tfar, R
     ray.flags[i] = 0;
     packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
     packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
-    valid[i] = i < rays.count ? -1 : 0;
   }
 }
 
@@ -80,16 +90,17 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
 // of them, a store-forwarding stall per pixel that was 70 % of the caster's own time).
 constexpr IdealReturn kNoReturn{};
 
-// Returns whether any of the hits is retroreflective.
-bool read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, int first_row,
-               std::span<IdealReturn> out) {
-  alignas(64) float cos_incidence[kLanes];
-  incidence_lanes(packet, cos_incidence);
+// The hits of lanes [first, first + quad.count) into their rows of out; returns whether any is
+// retroreflective.
+bool read_hits(const RTCRayHit16& packet, const float* cos_incidence, const ColumnCaster::SurfaceOptics* optics,
+               const RayQuad& quad, int first, std::span<IdealReturn> out) {
   bool retro = false;
-  for (size_t i = 0; i < out.size(); ++i) {
-    IdealReturn& ideal = out[i];
+  for (int lane = 0; lane < quad.count; ++lane) {
+    const auto i = static_cast<size_t>(first + lane);
+    const uint16_t row = quad.rows[lane];
+    IdealReturn& ideal = out[row];
     ideal = kNoReturn;
-    ideal.beam = static_cast<uint16_t>(first_row + static_cast<int>(i));
+    ideal.beam = row;
     const unsigned geom_id = packet.hit.geomID[i];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
     const ColumnCaster::SurfaceOptics& material = optics[geom_id];
@@ -198,31 +209,69 @@ ColumnCaster::ColumnCaster(const Scene& scene, const BeamGeometry& geometry, flo
 }
 
 void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const {
-  assert(static_cast<int>(out.size()) == geometry_.rows());
-  const WorldTransform world(world_from_sensor);
+  const Column column{measurement_id, &world_from_sensor, out};
+  cast_group({&column, 1});
+}
+
+void ColumnCaster::cast(std::span<const Column> columns) const {
+  for (size_t first = 0; first < columns.size(); first += kColumnsPerPacket) {
+    // The next group's rays (3.5 KiB a column of 128 beams) are fetched while Embree casts this
+    // one: read after its traversal had filled the caches, they missed, a third of the caster's
+    // own time.
+    for (size_t c = first + kColumnsPerPacket; c < std::min(columns.size(), first + 2 * kColumnsPerPacket); ++c) {
+      const auto* next = reinterpret_cast<const char*>(geometry_.quads(columns[c].measurement_id));
+      const size_t bytes = sizeof(RayQuad) * static_cast<size_t>(geometry_.quads_per_column());
+      for (size_t offset = 0; offset < bytes; offset += 64) __builtin_prefetch(next + offset, 0, 2);
+    }
+    cast_group(columns.subspan(first, std::min(kColumnsPerPacket, columns.size() - first)));
+  }
+}
+
+// Packet k holds slots 4k .. 4k + 3, slot s being quad s / n of column s % n: with four columns,
+// the same quad of each; with fewer, neighbouring quads of the same columns (one column: 16 rows
+// of one azimuth offset, as fast as its 16 consecutive rows).
+void ColumnCaster::cast_group(std::span<const Column> group) const {
+  const int n = static_cast<int>(group.size());
+  assert(n >= 1 && n <= static_cast<int>(kColumnsPerPacket));
+  std::array<WorldTransform, kColumnsPerPacket> world;
+  std::array<const RayQuad*, kColumnsPerPacket> quads{};
+  for (int c = 0; c < n; ++c) {
+    const Column& column = group[static_cast<size_t>(c)];
+    assert(static_cast<int>(column.out.size()) == geometry_.rows());
+    world[static_cast<size_t>(c)] = WorldTransform(*column.world_from_sensor);
+    quads[static_cast<size_t>(c)] = geometry_.quads(column.measurement_id);
+  }
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
-  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // the beams of a column are coherent
-  const RayPacket16* rays = geometry_.packets(measurement_id);
-  // The next column's rays (4 KiB for 128 beams) are fetched while Embree casts this one: read
-  // after its traversal had filled the caches, they missed, a third of the caster's own time.
-  if (measurement_id + 1 < geometry_.columns()) {
-    const auto* next = reinterpret_cast<const char*>(geometry_.packets(measurement_id + 1));
-    const size_t bytes = sizeof(RayPacket16) * static_cast<size_t>(geometry_.packets_per_column());
-    for (size_t offset = 0; offset < bytes; offset += 64) __builtin_prefetch(next + offset, 0, 2);
-  }
-  bool retro = false;
-  for (int k = 0; k < geometry_.packets_per_column(); ++k) {
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // neighbouring beams of neighbouring columns
+  constexpr int kSlots = kLanes / kQuadLanes;
+  const int slots = n * geometry_.quads_per_column();
+  std::array<bool, kColumnsPerPacket> retro{};
+  for (int first_slot = 0; first_slot < slots; first_slot += kSlots) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];
-    fill_packet(rays[k], world, max_range_m_, packet, valid);
+    init_packet(max_range_m_, packet);
+    const int used = std::min(kSlots, slots - first_slot);
+    for (int k = 0; k < kSlots; ++k) {
+      const int slot = first_slot + std::min(k, used - 1);  // unused slots repeat the last, masked off
+      const auto c = static_cast<size_t>(slot % n);
+      const RayQuad& quad = quads[c][slot / n];
+      fill_quad(quad, world[c], k < used ? quad.count : 0, k * kQuadLanes, packet, valid);
+    }
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    retro |= read_hits(packet, optics_.data(), rays[k].first_row,
-                       out.subspan(static_cast<size_t>(rays[k].first_row), static_cast<size_t>(rays[k].count)));
+    alignas(64) float cos_incidence[kLanes];
+    incidence_lanes(packet, cos_incidence);
+    for (int k = 0; k < used; ++k) {
+      const int slot = first_slot + k;
+      const auto c = static_cast<size_t>(slot % n);
+      retro[c] |= read_hits(packet, cos_incidence, optics_.data(), quads[c][slot / n], k * kQuadLanes, group[c].out);
+    }
   }
-  mark_vertical_edges(out);
-  // Without a retroreflector in the column every pixel keeps kNoReturn's "none near" (most columns).
-  if (retro) mark_retro_neighbours(out);
+  for (size_t c = 0; c < group.size(); ++c) {
+    mark_vertical_edges(group[c].out);
+    // Without a retroreflector in the column every pixel keeps kNoReturn's "none near" (most columns).
+    if (retro[c]) mark_retro_neighbours(group[c].out);
+  }
 }
 
 }  // namespace lidartwin

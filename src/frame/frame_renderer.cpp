@@ -19,6 +19,8 @@ struct Scratch {
   std::vector<std::vector<IdealReturn>> ideal;  // [column of the block][row]
   MeasuredColumn measured;
   std::vector<IdealReturn> before, after;  // the columns beside the block, for edge partners (E6)
+  std::vector<ColumnCaster::Column> cast;  // the block's observed columns, cast together
+  std::vector<Pose> moved;                 // their poses moved by E11, when the chain moves them
 };
 
 // Rays end 1 m past the profile's maximum range, so range noise can still carry a return across
@@ -51,7 +53,11 @@ struct FrameRenderer::Impl {
     const auto block = static_cast<size_t>(setup.format.columns_per_packet);
     scratch.assign(static_cast<size_t>(pool.size()),
                    Scratch{std::vector<std::vector<IdealReturn>>(block, std::vector<IdealReturn>(rows)),
-                           MeasuredColumn(rows), std::vector<IdealReturn>(rows), std::vector<IdealReturn>(rows)});
+                           MeasuredColumn(rows),
+                           std::vector<IdealReturn>(rows),
+                           std::vector<IdealReturn>(rows),
+                           {},
+                           std::vector<Pose>(block)});
   }
 
   // E6's edge partners of the block's columns, from their rows above and below and the adjacent
@@ -80,13 +86,16 @@ struct FrameRenderer::Impl {
   // chain: Embree's traversal and the chain's tables each stay in cache across the block instead
   // of evicting each other column by column (pipeline_bench: ratio to raw Embree 0.71 -> 0.75).
   void render_block(const FrameColumns& columns, int begin, int end, Scan& scan, Scratch& s) const {
+    s.cast.clear();
     for (int m = begin; m < end; ++m) {
       const auto column = static_cast<size_t>(m);
       if (!columns.observed[column]) continue;
-      const Pose& pose = columns.poses[column];
-      caster.cast(m, moves ? setup.chain.moved_pose(pose, column_context(columns, m)) : pose,
-                  s.ideal[static_cast<size_t>(m - begin)]);
+      const Pose* pose = &columns.poses[column];
+      if (moves)
+        pose = &(s.moved[static_cast<size_t>(m - begin)] = setup.chain.moved_pose(*pose, column_context(columns, m)));
+      s.cast.push_back({m, pose, s.ideal[static_cast<size_t>(m - begin)]});
     }
+    caster.cast(s.cast);
     if (partners) find_partners(columns, begin, end, s);
     for (int m = begin; m < end; ++m) {
       if (!columns.observed[static_cast<size_t>(m)]) {  // 6.4: zero pixels

@@ -4,6 +4,9 @@
 //   (a) raw reference: the same world rays, each column's 128 beams as 16-ray packets through
 //       rtcIntersect16 with RTC_INTERSECT_CONTEXT_FLAG_COHERENT, all cores (rays prebuilt, only
 //       the packet copy and the intersect are timed);
+//   (a') the same rays packed as the caster packs them (ColumnCaster: four rows of four
+//       neighbouring columns per packet), timed the same way: Embree's speed on these rays the
+//       fastest way this project knows, against which (c) and (d) are also given;
 //   (b) the same rays one per rtcIntersect1 call, all cores (for context);
 //   (c) the pipeline: pose per column, cast, effect chain, protocol units, packet encode with
 //       CRC-64 into packet buffers (the ForwardModel);
@@ -16,6 +19,7 @@
 //                       [pose=both|drone|ground]
 // ("pipeline" runs only (c), "record" only (d), for profiling).
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -124,9 +128,14 @@ void parallel_columns(int threads, int count, const std::function<void(int)>& ta
   work();
 }
 
-// The world rays of `frames` frames, 16-ray packets per column (8 per 128-beam column), exactly the
-// rays the caster builds: pose at the column's time applied to the SDK rays (protocol doc 7.2).
-std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int frames, float tfar) {
+// How the prebuilt rays are packed: a column's 16 consecutive rows (DESIGN.md's reference), or as
+// ColumnCaster packs them, the same RayQuad of four neighbouring columns.
+enum class Packing { kColumnRows, kCasterQuads };
+
+// The world rays of `frames` frames, 16-ray packets (8 per 128-beam column), exactly the rays the
+// caster builds: pose at the column's time applied to the SDK rays (protocol doc 7.2).
+std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int frames, float tfar,
+                                    Packing packing = Packing::kColumnRows) {
   const int w = s.format().columns_per_frame, h = s.format().pixels_per_column, per_column = (h + 15) / 16;
   const BeamGeometry geometry(s.profile.beams, w);
   std::vector<RTCRay16> packets(static_cast<size_t>(frames) * static_cast<size_t>(w * per_column));
@@ -136,8 +145,21 @@ std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int
       const Eigen::Matrix3f rotation = pose.rotation.toRotationMatrix().cast<float>();
       const Eigen::Vector3f translation = pose.translation.cast<float>();
       for (int r = 0; r < h; ++r) {
-        RTCRay16& p = packets[static_cast<size_t>((f * w + m) * per_column + r / 16)];
-        const int i = r % 16;
+        // kCasterQuads: row r sits in quad q (lane j) of its column's cast order; four columns
+        // 4g .. 4g + 3 share packets, packet q of the group holding quad q of each.
+        size_t index = static_cast<size_t>((f * w + m) * per_column + r / 16);
+        int i = r % 16;
+        if (packing == Packing::kCasterQuads) {
+          const RayQuad* quads = geometry.quads(m);
+          for (int q = 0; q < geometry.quads_per_column(); ++q) {
+            for (int j = 0; j < quads[q].count; ++j) {
+              if (quads[q].rows[j] != r) continue;
+              index = static_cast<size_t>((f * w + m / 4 * 4) * per_column + q);
+              i = (m % 4) * 4 + j;
+            }
+          }
+        }
+        RTCRay16& p = packets[index];
         const BeamRay& ray = geometry.ray(r, m);
         const Eigen::Vector3f o = rotation * ray.origin_m + translation, d = rotation * ray.direction;
         p.org_x[i] = o.x(), p.org_y[i] = o.y(), p.org_z[i] = o.z();
@@ -201,12 +223,19 @@ Rate caster_only(const Setup& s, const PoseSource& poses, const BeamGeometry& ge
                  int threads) {
   const ColumnCaster caster(s.scene, geometry, tfar);
   const int w = s.format().columns_per_frame;
+  constexpr int kBlock = 16;  // a packet's columns, as the renderer casts them
   const Stopwatch watch;
-  parallel_columns(threads, frames * w, [&](int c) {
-    thread_local std::vector<IdealReturn> column;
-    column.resize(static_cast<size_t>(geometry.rows()));
-    const int f = c / w, m = c % w;
-    caster.cast(m, column_pose(poses, f, m, w), column);
+  parallel_columns(threads, frames * w / kBlock, [&](int b) {
+    thread_local std::vector<std::vector<IdealReturn>> block(kBlock);
+    std::array<Pose, kBlock> pose_of;
+    std::array<ColumnCaster::Column, kBlock> columns;
+    for (int k = 0; k < kBlock; ++k) {
+      const int c = b * kBlock + k, f = c / w, m = c % w;
+      block[static_cast<size_t>(k)].resize(static_cast<size_t>(geometry.rows()));
+      pose_of[static_cast<size_t>(k)] = column_pose(poses, f, m, w);
+      columns[static_cast<size_t>(k)] = {m, &pose_of[static_cast<size_t>(k)], block[static_cast<size_t>(k)]};
+    }
+    caster.cast(columns);
   });
   return watch.rate(static_cast<double>(frames) * w * geometry.rows(), threads);
 }
@@ -268,13 +297,16 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
   const FrameRenderer& renderer = model.renderer();
   const auto rays =
       only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m());
-  Rate raw16, raw1, cast, recorded;
+  const auto quad_rays =
+      only_pipeline ? std::vector<RTCRay16>()
+                    : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m(), Packing::kCasterQuads);
+  Rate raw16, raw_quads, raw1, cast, recorded;
   PipelineRate pipe{};
   const auto keep_best = [](Rate& best, const Rate& r) {
     best.wall_per_s = std::max(best.wall_per_s, r.wall_per_s);
     best.cpu_per_s = std::max(best.cpu_per_s, r.cpu_per_s);
   };
-  std::vector<double> pipeline_ratios, record_ratios, floor_ratios;
+  std::vector<double> pipeline_ratios, record_ratios, floor_ratios, pipeline_quad_ratios, record_quad_ratios;
   for (int r = 0; r < repeats; ++r) {
     const Rate a = only_pipeline ? Rate{} : raw_packets(s, rays, threads);
     const PipelineRate p = pipeline(s, model, frames, threads);
@@ -283,10 +315,14 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     if (only_pipeline) continue;
     const Rate d = record_path(s, *scenario.poses, frames, threads);
     floor_ratios.push_back(record_path(s, *scenario.poses, frames, threads, EffectChain()).wall_per_s / a.wall_per_s);
+    const Rate a_quads = raw_packets(s, quad_rays, threads);
     keep_best(raw16, a);
+    keep_best(raw_quads, a_quads);
     keep_best(recorded, d);
     pipeline_ratios.push_back(p.pixels.wall_per_s / a.wall_per_s);
     record_ratios.push_back(d.wall_per_s / a.wall_per_s);
+    pipeline_quad_ratios.push_back(p.pixels.wall_per_s / a_quads.wall_per_s);
+    record_quad_ratios.push_back(d.wall_per_s / a_quads.wall_per_s);
     std::fprintf(stderr, "  repeat %d: (a) %.2f, (c) %.2f, (d) %.2f M/s\n", r, a.wall_per_s * 1e-6,
                  p.pixels.wall_per_s * 1e-6, d.wall_per_s * 1e-6);
     keep_best(raw1, raw_single(s, rays, threads));
@@ -299,6 +335,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     std::printf("%-40s %8.2f M/s | %8.2f M/s\n", name, r.wall_per_s * 1e-6, r.cpu_per_s * 1e-6);
   };
   row("(a) raw Embree rtcIntersect16 coherent", raw16);
+  row("(a') the same, the caster's packets", raw_quads);
   row("(b) raw Embree rtcIntersect1", raw1);
   row("    ColumnCaster alone (rays)", cast);
   row("(c) pipeline points (pixels)", pipe.pixels);
@@ -313,6 +350,8 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
                 *std::min_element(record_ratios.begin(), record_ratios.end()),
                 *std::max_element(record_ratios.begin(), record_ratios.end()));
     std::printf("    the same without any effect (the floor): median %.3f\n", median(floor_ratios));
+    std::printf("against (a'), the caster's packing: (c) %.3f, (d) %.3f (medians)\n", median(pipeline_quad_ratios),
+                median(record_quad_ratios));
   }
 }
 

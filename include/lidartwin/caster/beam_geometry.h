@@ -1,6 +1,7 @@
 #pragma once
 // The ray of every (beam, measurement id) in the sensor frame: the exact inverse of the SDK's XYZ
 // projection (protocol doc 7.1/7.2), so the SDK rebuilds exactly the points we hit.
+#include <cstdint>
 #include <vector>
 
 #include <Eigen/Core>
@@ -25,20 +26,23 @@ struct SdkLutEntry {
 };
 SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id);
 
-// The same rays, 16 beams per packet in Embree's structure-of-arrays order, so the caster's
-// transform into the world vectorizes. Rows first + i for lane i; lanes past the last row repeat
-// it (they are masked off when cast).
-struct RayPacket16 {
-  static constexpr int kLanes = 16;
-  alignas(64) float org_x[kLanes];
-  alignas(64) float org_y[kLanes];
-  alignas(64) float org_z[kLanes];
-  alignas(64) float dir_x[kLanes];
-  alignas(64) float dir_y[kLanes];
-  alignas(64) float dir_z[kLanes];
-  alignas(64) float tnear[kLanes];
-  int first_row = 0;
-  int count = 0;  // lanes in use
+// The same rays, four rows of a column at a time in Embree's structure-of-arrays order: the
+// caster fills a 16-ray packet with four quads, the same quad of four neighbouring columns, whose
+// rays lie close together (ColumnCaster). A column's rows go into quads in cast order: rows that
+// share an azimuth offset, by elevation (an OS1-128's four offsets 2.8 degrees apart, each with
+// 32 rows), so a quad spans about 1.3 degrees and a packet of four columns about 1.4 x 4 degrees,
+// where 16 consecutive rows span 5.3 x 8.4. Lanes past the last row repeat it (masked off).
+struct RayQuad {
+  static constexpr int kLanes = 4;
+  alignas(16) float org_x[kLanes];
+  alignas(16) float org_y[kLanes];
+  alignas(16) float org_z[kLanes];
+  alignas(16) float dir_x[kLanes];
+  alignas(16) float dir_y[kLanes];
+  alignas(16) float dir_z[kLanes];
+  alignas(16) float tnear[kLanes];
+  uint16_t rows[kLanes];  // the row of each lane
+  int count = 0;          // lanes in use
 };
 
 class BeamGeometry {
@@ -53,17 +57,18 @@ class BeamGeometry {
   // row r + 1 of a column, and row r in adjacent columns.
   float row_spacing_rad(int row) const { return row_spacing_[static_cast<size_t>(row)]; }
   float column_spacing_rad(int row) const { return column_spacing_[static_cast<size_t>(row)]; }
-  // A column's rays as packets_per_column() 16-lane packets.
-  int packets_per_column() const { return packets_per_column_; }
-  const RayPacket16* packets(int measurement_id) const {
-    return packets_.data() + static_cast<size_t>(measurement_id * packets_per_column_);
+  // A column's rays as quads_per_column() quads, in cast order.
+  int quads_per_column() const { return quads_per_column_; }
+  const RayQuad* quads(int measurement_id) const {
+    return quads_.data() + static_cast<size_t>(measurement_id * quads_per_column_);
   }
 
  private:
   int columns_ = 0;
   int rows_ = 0;
-  int packets_per_column_ = 0;
-  std::vector<RayPacket16> packets_;   // the rays, column by column
+  int quads_per_column_ = 0;
+  std::vector<RayQuad> quads_;         // the rays, column by column
+  std::vector<int> slot_of_row_;       // [row]: quad * 4 + lane
   BeamIntrinsics beams_;               // for point(), in double precision
   std::vector<float> row_spacing_;     // [rows - 1]
   std::vector<float> column_spacing_;  // [rows]
