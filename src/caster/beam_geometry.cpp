@@ -136,15 +136,16 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
   // with wider loads than the stores that wrote it, a store-forwarding stall per ray.
   const std::vector<int> order = cast_order(rows);
   quads_per_column_ = (rows_ + RayQuad::kLanes - 1) / RayQuad::kLanes;
-  quads_.resize(static_cast<size_t>(columns_ * quads_per_column_));
+  const int groups = (columns_ + kGroupColumns - 1) / kGroupColumns;
+  quads_.resize(static_cast<size_t>(groups * kGroupColumns * quads_per_column_));
   slot_of_row_.resize(static_cast<size_t>(rows_));
   for (int slot = 0; slot < rows_; ++slot) slot_of_row_[static_cast<size_t>(order[static_cast<size_t>(slot)])] = slot;
   const auto range_offset = static_cast<float>(kRangeUnit * constants.n);
   for (int m = 0; m < columns_; ++m) {
     const ColumnAngles column = column_angles(columns_, m);
     for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth(offsets[k], column);
-    RayQuad* quad = &quads_[static_cast<size_t>(m * quads_per_column_)];
-    for (int first = 0; first < rows_; first += RayQuad::kLanes, ++quad) {
+    for (int first = 0; first < rows_; first += RayQuad::kLanes) {
+      RayQuad* quad = &quads_[quad_index(m, first / RayQuad::kLanes)];
       quad->count = std::min(RayQuad::kLanes, rows_ - first);
       for (int i = 0; i < RayQuad::kLanes; ++i) {
         const int row = order[static_cast<size_t>(first + std::min(i, quad->count - 1))];  // lanes past the end repeat
@@ -172,7 +173,7 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
 
 BeamRay BeamGeometry::ray(int row, int measurement_id) const {
   const int slot = slot_of_row_[static_cast<size_t>(row)];
-  const RayQuad& p = quads(measurement_id)[slot / RayQuad::kLanes];
+  const RayQuad& p = quad(measurement_id, slot / RayQuad::kLanes);
   const int i = slot % RayQuad::kLanes;
   return {{p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]}, p.tnear[i]};
 }

@@ -43,7 +43,8 @@ void affine_lanes(const float* __restrict x0, const float* __restrict x1, const 
 
 // A quad's sensor-frame rays into lanes [first, first + 4) of the packet, in the world (protocol
 // doc 7.2: the SDK's rays, moved by the pose of their column's time); `count` lanes are cast.
-void fill_quad(const RayQuad& rays, const WorldTransform& w, int count, int first, RTCRayHit16& packet, int* valid) {
+inline void fill_quad(const RayQuad& rays, const WorldTransform& w, int count, int first, RTCRayHit16& packet,
+                      int* valid) {
   RTCRay16& ray = packet.ray;
   const auto f = static_cast<size_t>(first);
   affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 0, w.t[0], ray.org_x + f);
@@ -215,14 +216,6 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
 
 void ColumnCaster::cast(std::span<const Column> columns) const {
   for (size_t first = 0; first < columns.size(); first += kColumnsPerPacket) {
-    // The next group's rays (3.5 KiB a column of 128 beams) are fetched while Embree casts this
-    // one: read after its traversal had filled the caches, they missed, a third of the caster's
-    // own time.
-    for (size_t c = first + kColumnsPerPacket; c < std::min(columns.size(), first + 2 * kColumnsPerPacket); ++c) {
-      const auto* next = reinterpret_cast<const char*>(geometry_.quads(columns[c].measurement_id));
-      const size_t bytes = sizeof(RayQuad) * static_cast<size_t>(geometry_.quads_per_column());
-      for (size_t offset = 0; offset < bytes; offset += 64) __builtin_prefetch(next + offset, 0, 2);
-    }
     cast_group(columns.subspan(first, std::min(kColumnsPerPacket, columns.size() - first)));
   }
 }
@@ -234,37 +227,55 @@ void ColumnCaster::cast_group(std::span<const Column> group) const {
   const int n = static_cast<int>(group.size());
   assert(n >= 1 && n <= static_cast<int>(kColumnsPerPacket));
   std::array<WorldTransform, kColumnsPerPacket> world;
-  std::array<const RayQuad*, kColumnsPerPacket> quads{};
   for (int c = 0; c < n; ++c) {
     const Column& column = group[static_cast<size_t>(c)];
     assert(static_cast<int>(column.out.size()) == geometry_.rows());
     world[static_cast<size_t>(c)] = WorldTransform(*column.world_from_sensor);
-    quads[static_cast<size_t>(c)] = geometry_.quads(column.measurement_id);
   }
+  // Slot s of the group is quad s / n of column s % n, counted up without a division.
+  struct Slot {
+    int column = 0;
+    int quad = 0;
+  };
+  const auto next_slot = [n](Slot slot) { return ++slot.column == n ? Slot{0, slot.quad + 1} : slot; };
+  const auto quad_of = [&](Slot slot) -> const RayQuad& {
+    return geometry_.quad(group[static_cast<size_t>(slot.column)].measurement_id, slot.quad);
+  };
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // neighbouring beams of neighbouring columns
   constexpr int kSlots = kLanes / kQuadLanes;
   const int slots = n * geometry_.quads_per_column();
   std::array<bool, kColumnsPerPacket> retro{};
+  Slot first{};
   for (int first_slot = 0; first_slot < slots; first_slot += kSlots) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];
     init_packet(max_range_m_, packet);
     const int used = std::min(kSlots, slots - first_slot);
+    std::array<Slot, kSlots> slot;
+    slot[0] = first;
+    for (int k = 1; k < kSlots; ++k) slot[k] = k < used ? next_slot(slot[k - 1]) : slot[k - 1];  // repeats: masked off
+    first = next_slot(slot[kSlots - 1]);
+    // The next packet's rays are fetched while Embree casts this one: read after its traversal
+    // had filled the caches, they missed (a third of the caster's own time).
+    Slot ahead = first;
+    for (int k = 0; k < kSlots && ahead.quad < geometry_.quads_per_column(); ++k, ahead = next_slot(ahead)) {
+      const auto* bytes = reinterpret_cast<const char*>(&quad_of(ahead));
+      __builtin_prefetch(bytes, 0, 2);
+      __builtin_prefetch(bytes + 64, 0, 2);
+    }
     for (int k = 0; k < kSlots; ++k) {
-      const int slot = first_slot + std::min(k, used - 1);  // unused slots repeat the last, masked off
-      const auto c = static_cast<size_t>(slot % n);
-      const RayQuad& quad = quads[c][slot / n];
-      fill_quad(quad, world[c], k < used ? quad.count : 0, k * kQuadLanes, packet, valid);
+      const RayQuad& quad = quad_of(slot[k]);
+      fill_quad(quad, world[static_cast<size_t>(slot[k].column)], k < used ? quad.count : 0, k * kQuadLanes, packet,
+                valid);
     }
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
     alignas(64) float cos_incidence[kLanes];
     incidence_lanes(packet, cos_incidence);
     for (int k = 0; k < used; ++k) {
-      const int slot = first_slot + k;
-      const auto c = static_cast<size_t>(slot % n);
-      retro[c] |= read_hits(packet, cos_incidence, optics_.data(), quads[c][slot / n], k * kQuadLanes, group[c].out);
+      const auto c = static_cast<size_t>(slot[k].column);
+      retro[c] |= read_hits(packet, cos_incidence, optics_.data(), quad_of(slot[k]), k * kQuadLanes, group[c].out);
     }
   }
   for (size_t c = 0; c < group.size(); ++c) {

@@ -150,10 +150,10 @@ std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int
         size_t index = static_cast<size_t>((f * w + m) * per_column + r / 16);
         int i = r % 16;
         if (packing == Packing::kCasterQuads) {
-          const RayQuad* quads = geometry.quads(m);
           for (int q = 0; q < geometry.quads_per_column(); ++q) {
-            for (int j = 0; j < quads[q].count; ++j) {
-              if (quads[q].rows[j] != r) continue;
+            const RayQuad& quad = geometry.quad(m, q);
+            for (int j = 0; j < quad.count; ++j) {
+              if (quad.rows[j] != r) continue;
               index = static_cast<size_t>((f * w + m / 4 * 4) * per_column + q);
               i = (m % 4) * 4 + j;
             }

@@ -57,17 +57,23 @@ class BeamGeometry {
   // row r + 1 of a column, and row r in adjacent columns.
   float row_spacing_rad(int row) const { return row_spacing_[static_cast<size_t>(row)]; }
   float column_spacing_rad(int row) const { return column_spacing_[static_cast<size_t>(row)]; }
-  // A column's rays as quads_per_column() quads, in cast order.
+  // A column's rays as quads_per_column() quads, in cast order. Stored four columns at a time,
+  // quad by quad (the same quad of columns 4g .. 4g + 3 side by side): the caster's packets read
+  // one 512-byte run each, and a group of columns one sequential stream.
+  static constexpr int kGroupColumns = 4;
   int quads_per_column() const { return quads_per_column_; }
-  const RayQuad* quads(int measurement_id) const {
-    return quads_.data() + static_cast<size_t>(measurement_id * quads_per_column_);
-  }
+  const RayQuad& quad(int measurement_id, int index) const { return quads_[quad_index(measurement_id, index)]; }
 
  private:
+  size_t quad_index(int measurement_id, int index) const {
+    const int group = measurement_id / kGroupColumns, column = measurement_id % kGroupColumns;
+    return static_cast<size_t>((group * quads_per_column_ + index) * kGroupColumns + column);
+  }
+
   int columns_ = 0;
   int rows_ = 0;
   int quads_per_column_ = 0;
-  std::vector<RayQuad> quads_;         // the rays, column by column
+  std::vector<RayQuad> quads_;         // the rays, four columns at a time
   std::vector<int> slot_of_row_;       // [row]: quad * 4 + lane
   BeamIntrinsics beams_;               // for point(), in double precision
   std::vector<float> row_spacing_;     // [rows - 1]
