@@ -1,4 +1,4 @@
-#include "pcap/block_file_writer.h"
+#include "lidartwin/pcap/block_file_writer.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 
 #include "lidartwin/error.h"
 
-namespace lidartwin::pcap_detail {
+namespace lidartwin {
 namespace {
 
 constexpr int kBlocks = 3;  // one filling, two being written: the disk keeps up with a frame ahead
@@ -25,13 +25,14 @@ bool clear_direct(int fd) {
 
 void BlockFileWriter::FreeAligned::operator()(uint8_t* p) const { std::free(p); }
 
-BlockFileWriter::BlockFileWriter(const std::filesystem::path& path) : name_(path.string()) {
+BlockFileWriter::BlockFileWriter(const std::filesystem::path& path, std::string_view contents)
+    : name_(path.string()), contents_(contents) {
   // File systems without O_DIRECT (tmpfs before Linux 6.6, some FUSE) refuse it at open(2) with
   // EINVAL; those get buffered writes, still from the writer thread.
   fd_ = ::open(path.c_str(), kFlags | O_DIRECT, 0644);
   direct_ = fd_ >= 0;
   if (fd_ < 0 && errno == EINVAL) fd_ = ::open(path.c_str(), kFlags, 0644);
-  if (fd_ < 0) throw InputError(name_ + ": cannot write capture: " + std::strerror(errno));
+  if (fd_ < 0) throw InputError(name_ + ": cannot write " + contents_ + ": " + std::strerror(errno));
   for (int i = 0; i < kBlocks; ++i) {
     auto* bytes = static_cast<uint8_t*>(std::aligned_alloc(kAlignment, kBlockBytes));
     if (bytes == nullptr) throw std::bad_alloc();
@@ -67,7 +68,7 @@ void BlockFileWriter::close() {
   thread_.join();
   const bool closed = ::close(fd_) == 0;
   fd_ = -1;
-  if (!closed && !failed_) error_ = name_ + ": cannot write capture: " + std::strerror(errno), failed_ = true;
+  if (!closed && !failed_) error_ = name_ + ": cannot write " + contents_ + ": " + std::strerror(errno), failed_ = true;
   throw_if_failed();
 }
 
@@ -135,7 +136,7 @@ void BlockFileWriter::write_block(const Block& block) {
 void BlockFileWriter::fail(const std::string& what) {
   const std::lock_guard lock(mutex_);
   failed_ = true;
-  error_ = name_ + ": cannot write capture: " + what;
+  error_ = name_ + ": cannot write " + contents_ + ": " + what;
 }
 
-}  // namespace lidartwin::pcap_detail
+}  // namespace lidartwin

@@ -16,8 +16,8 @@
 #include <vector>
 
 #include "lidartwin/error.h"
+#include "lidartwin/pcap/block_file_writer.h"
 #include "lidartwin/pcap/pcap.h"
-#include "pcap/block_file_writer.h"
 #include "pcap/frame_encoder.h"
 
 namespace lidartwin {
@@ -52,8 +52,8 @@ std::string system_error() { return std::strerror(errno); }
 
 struct PcapWriter::Impl {
   std::string name;
-  int fd = -1;                                         // kEachDatagram
-  std::optional<pcap_detail::BlockFileWriter> blocks;  // kInBlocks
+  int fd = -1;                                  // kEachDatagram
+  std::optional<BlockFileWriter> blocks;        // kInBlocks
   uint16_t next_ip_id = 1;                      // a sender's IP id counter: distinct per datagram, as reassembly needs
   std::vector<pcap_detail::FrameParts> frames;  // reused between datagrams
   std::vector<RecordHeader> records;

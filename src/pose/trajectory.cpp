@@ -111,7 +111,7 @@ void write_tum(const std::filesystem::path& path, const std::vector<StampedPose>
 TumWriter::TumWriter(const std::filesystem::path& path) : path_(path), file_(std::fopen(path.c_str(), "w")) {
   if (file_ == nullptr) throw InputError(path.string() + ": cannot open for writing");
   std::setvbuf(file_, nullptr, _IOFBF, 1 << 16);  // `record` writes a row per column
-  std::fprintf(file_, "# timestamp tx ty tz qx qy qz qw\n");
+  std::fwrite(kTumHeader.data(), 1, kTumHeader.size(), file_);
 }
 
 TumWriter::~TumWriter() {
@@ -200,21 +200,26 @@ char* put_fixed(char* out, char* end, double value) {
 
 }  // namespace
 
-// The row "%.9f %.9f %.9f %.9f %.12f %.12f %.12f %.12f\n": `record` writes a row per column, 20 k
-// rows a second of an OS1 at 2048x10 (printf made that a fifth of a short record's time).
-void TumWriter::write(double time_s, const Pose& pose) {
+// `record` writes a row per column, 20 k rows a second of an OS1 at 2048x10 (printf made that a
+// fifth of a short record's time).
+TumRow tum_row(double time_s, const Pose& pose) {
   const auto& p = pose.translation;
   const auto& q = pose.rotation;
   const std::array<double, 8> values{time_s, p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w()};
-  // Room for any double: 309 integer digits, sign, point and 12 decimals, and the separator.
-  std::array<char, 8 * 324> row;
-  char* out = row.data();
+  TumRow row;
+  char* out = row.text.data();
   for (size_t i = 0; i < values.size(); ++i) {
-    const auto end = row.data() + row.size();
+    const auto end = row.text.data() + row.text.size();
     out = i < 4 ? put_fixed<9>(out, end, values[i]) : put_fixed<12>(out, end, values[i]);
     *out++ = i + 1 < values.size() ? ' ' : '\n';
   }
-  std::fwrite(row.data(), 1, static_cast<size_t>(out - row.data()), file_);
+  row.size = static_cast<size_t>(out - row.text.data());
+  return row;
+}
+
+void TumWriter::write(double time_s, const Pose& pose) {
+  const TumRow row = tum_row(time_s, pose);
+  std::fwrite(row.text.data(), 1, row.size, file_);
 }
 
 void TumWriter::close() {

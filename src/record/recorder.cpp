@@ -14,6 +14,7 @@
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/packet/imu_packet.h"
+#include "lidartwin/pcap/block_file_writer.h"
 #include "lidartwin/pcap/pcap.h"
 
 namespace lidartwin {
@@ -31,9 +32,11 @@ class CaptureWriter {
   CaptureWriter(const ForwardModel& model, const std::filesystem::path& dir)
       : model_(model),
         pcap_(dir / "capture.pcap", PcapFlush::kInBlocks),
-        column_poses_(dir / "column_poses.tum"),
+        column_poses_(dir / "column_poses.tum", "column poses"),
         imu_(model.format().udp_profile_imu == UdpProfileImu::kLegacy),
-        ready_(model.packet_columns().size()) {}
+        ready_(model.packet_columns().size()) {
+    append(column_poses_, kTumHeader);
+  }
 
   // Before frame k renders into `encoded`.
   void begin_frame(uint64_t frame, const EncodedFrame& encoded) {
@@ -94,8 +97,9 @@ class CaptureWriter {
     for (int m = first; m < first + model_.format().columns_per_packet; ++m) {
       const auto column = static_cast<size_t>(m);
       if (!encoded_->columns.observed[column]) continue;
-      column_poses_.write(static_cast<double>(encoded_->scan.timestamp_ns[column]) * 1e-9,
-                          encoded_->columns.poses[column]);
+      const TumRow row =
+          tum_row(static_cast<double>(encoded_->scan.timestamp_ns[column]) * 1e-9, encoded_->columns.poses[column]);
+      append(column_poses_, row.view());
     }
   }
 
@@ -113,9 +117,13 @@ class CaptureWriter {
     pcap_.write(datagram);  // straight from the frame buffer
   }
 
+  static void append(BlockFileWriter& file, std::string_view text) {
+    file.append({reinterpret_cast<const uint8_t*>(text.data()), text.size()});
+  }
+
   const ForwardModel& model_;
   PcapWriter pcap_;
-  TumWriter column_poses_;
+  BlockFileWriter column_poses_;  // a row per column: in blocks, as the capture (no page cache)
   bool imu_;
   uint64_t imu_sample_ = 0;
   // The frame being written: its packets' ready flags and the next one to write (in send order).

@@ -1,5 +1,7 @@
 #pragma once
 // Poses of the sensor in the scene's world frame (Z up, metres; see scene/scene.h).
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -50,6 +52,16 @@ class Trajectory {
 };
 
 void write_tum(const std::filesystem::path& path, const std::vector<StampedPose>& poses);
+
+// One TUM row, "%.9f %.9f %.9f %.9f %.12f %.12f %.12f %.12f\n" of time, translation and
+// quaternion (x y z w), as TumWriter and write_tum write them; the rows of a file follow kTumHeader.
+struct TumRow {
+  std::array<char, 8 * 324> text;  // room for any doubles: 309 integer digits, sign, point, 12 decimals, separator
+  size_t size = 0;
+  std::string_view view() const { return {text.data(), size}; }
+};
+TumRow tum_row(double time_s, const Pose& pose);
+inline constexpr std::string_view kTumHeader = "# timestamp tx ty tz qx qy qz qw\n";
 
 // A TUM file written row by row (a daemon's ground truth grows while it streams). Throws
 // InputError naming the file if it cannot be created; close() reports a failed write.

@@ -4,7 +4,8 @@
 // A buffered write(2) costs the writing thread a kernel copy and page-cache bookkeeping per 4 KiB
 // (on this machine's ext4, 0.25 ns per byte for 32 MB, 1.8 ns once dirty pages are throttled, as a
 // long capture's are: 520 MB/s); O_DIRECT took 0.13 ns per byte at 2.9 GB/s, off the render threads.
-// `record` writes ~12 bytes per pixel this way (pcap_writer.cpp).
+// `record` writes its capture (~12 bytes per pixel, pcap_writer.cpp) and its column poses (a TUM
+// row per column, recorder.cpp) this way.
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -14,18 +15,20 @@
 #include <mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
-namespace lidartwin::pcap_detail {
+namespace lidartwin {
 
 class BlockFileWriter {
  public:
   static constexpr size_t kBlockBytes = size_t{4} << 20;
   static constexpr size_t kAlignment = 4096;  // O_DIRECT's: a multiple of any logical block size
 
-  // Creates (truncates) the file; throws InputError naming it if it cannot.
-  explicit BlockFileWriter(const std::filesystem::path& path);
+  // Creates (truncates) the file; throws InputError naming it if it cannot. `contents` names what
+  // the file holds in errors: "<file>: cannot write <contents>: <reason>".
+  explicit BlockFileWriter(const std::filesystem::path& path, std::string_view contents = "capture");
   ~BlockFileWriter();  // closes, swallowing a write error: call close() to see it
   BlockFileWriter(const BlockFileWriter&) = delete;
   BlockFileWriter& operator=(const BlockFileWriter&) = delete;
@@ -54,6 +57,7 @@ class BlockFileWriter {
   void throw_if_failed();
 
   std::string name_;
+  std::string contents_;
   int fd_ = -1;
   bool direct_ = false;  // O_DIRECT is set on fd_
   std::vector<std::unique_ptr<uint8_t, FreeAligned>> storage_;
@@ -71,4 +75,4 @@ class BlockFileWriter {
   std::thread thread_;
 };
 
-}  // namespace lidartwin::pcap_detail
+}  // namespace lidartwin
