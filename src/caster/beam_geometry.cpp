@@ -140,16 +140,21 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
   quads_.resize(static_cast<size_t>(groups * kGroupColumns * quads_per_column_));
   slot_of_row_.resize(static_cast<size_t>(rows_));
   for (int slot = 0; slot < rows_; ++slot) slot_of_row_[static_cast<size_t>(order[static_cast<size_t>(slot)])] = slot;
-  const auto range_offset = static_cast<float>(kRangeUnit * constants.n);
+  range_offset_m_ = static_cast<float>(kRangeUnit * constants.n);
+  for (int first = 0; first < rows_; first += RayQuad::kLanes) {
+    QuadRows& quad = quad_rows_.emplace_back();
+    quad.count = std::min(RayQuad::kLanes, rows_ - first);
+    for (int i = 0; i < RayQuad::kLanes; ++i) {  // lanes past the end repeat the last row
+      quad.rows[i] = static_cast<uint16_t>(order[static_cast<size_t>(first + std::min(i, quad.count - 1))]);
+    }
+  }
   for (int m = 0; m < columns_; ++m) {
     const ColumnAngles column = column_angles(columns_, m);
     for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth(offsets[k], column);
-    for (int first = 0; first < rows_; first += RayQuad::kLanes) {
-      RayQuad* quad = &quads_[quad_index(m, first / RayQuad::kLanes)];
-      quad->count = std::min(RayQuad::kLanes, rows_ - first);
+    for (int q = 0; q < quads_per_column_; ++q) {
+      RayQuad* quad = &quads_[quad_index(m, q)];
       for (int i = 0; i < RayQuad::kLanes; ++i) {
-        const int row = order[static_cast<size_t>(first + std::min(i, quad->count - 1))];  // lanes past the end repeat
-        const auto r = static_cast<size_t>(row);
+        const auto r = static_cast<size_t>(quad_rows_[static_cast<size_t>(q)].rows[i]);
         const SdkLutEntry entry = lut_entry(constants, rows[r], column, azimuths[offset_of_row[r]]);
         quad->org_x[i] = static_cast<float>(entry.origin_m.x());
         quad->org_y[i] = static_cast<float>(entry.origin_m.y());
@@ -157,8 +162,6 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
         quad->dir_x[i] = static_cast<float>(entry.direction.x());
         quad->dir_y[i] = static_cast<float>(entry.direction.y());
         quad->dir_z[i] = static_cast<float>(entry.direction.z());
-        quad->tnear[i] = range_offset;
-        quad->rows[i] = static_cast<uint16_t>(row);
       }
     }
   }
@@ -175,7 +178,7 @@ BeamRay BeamGeometry::ray(int row, int measurement_id) const {
   const int slot = slot_of_row_[static_cast<size_t>(row)];
   const RayQuad& p = quad(measurement_id, slot / RayQuad::kLanes);
   const int i = slot % RayQuad::kLanes;
-  return {{p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]}, p.tnear[i]};
+  return {{p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]}, range_offset_m_};
 }
 
 Eigen::Vector3d BeamGeometry::point(int row, int measurement_id, double range_mm) const {

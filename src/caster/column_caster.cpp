@@ -53,16 +53,14 @@ inline void fill_quad(const RayQuad& rays, const WorldTransform& w, int count, i
   affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 0, 0.0f, ray.dir_x + f);
   affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 3, 0.0f, ray.dir_y + f);
   affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 6, 0.0f, ray.dir_z + f);
-  for (int i = 0; i < kQuadLanes; ++i) {
-    ray.tnear[f + static_cast<size_t>(i)] = rays.tnear[i];  // start at the physical beam origin
-    valid[first + i] = i < count ? -1 : 0;
-  }
+  for (int i = 0; i < kQuadLanes; ++i) valid[first + i] = i < count ? -1 : 0;
 }
 
-// The fields every lane shares.
-void init_packet(float tfar, RTCRayHit16& packet) {
+// The fields every lane shares; tnear starts each ray at the physical beam origin.
+void init_packet(float tnear, float tfar, RTCRayHit16& packet) {
   RTCRay16& ray = packet.ray;
   for (int i = 0; i < kLanes; ++i) {
+    ray.tnear[i] = tnear;
     ray.tfar[i] = tfar;
     ray.time[i] = 0.0f;
     ray.mask[i] = 0xFFFFFFFFu;
@@ -94,7 +92,7 @@ constexpr IdealReturn kNoReturn{};
 // The hits of lanes [first, first + quad.count) into their rows of out; returns whether any is
 // retroreflective.
 bool read_hits(const RTCRayHit16& packet, const float* cos_incidence, const ColumnCaster::SurfaceOptics* optics,
-               const RayQuad& quad, int first, std::span<IdealReturn> out) {
+               const QuadRows& quad, int first, std::span<IdealReturn> out) {
   bool retro = false;
   for (int lane = 0; lane < quad.count; ++lane) {
     const auto i = static_cast<size_t>(first + lane);
@@ -251,7 +249,7 @@ void ColumnCaster::cast_group(std::span<const Column> group) const {
   for (int first_slot = 0; first_slot < slots; first_slot += kSlots) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];
-    init_packet(max_range_m_, packet);
+    init_packet(geometry_.range_offset_m(), max_range_m_, packet);
     const int used = std::min(kSlots, slots - first_slot);
     std::array<Slot, kSlots> slot;
     slot[0] = first;
@@ -261,21 +259,21 @@ void ColumnCaster::cast_group(std::span<const Column> group) const {
     // had filled the caches, they missed (a third of the caster's own time).
     Slot ahead = first;
     for (int k = 0; k < kSlots && ahead.quad < geometry_.quads_per_column(); ++k, ahead = next_slot(ahead)) {
-      const auto* bytes = reinterpret_cast<const char*>(&quad_of(ahead));
+      const auto* bytes = reinterpret_cast<const char*>(&quad_of(ahead));  // 96 bytes: two lines at most
       __builtin_prefetch(bytes, 0, 2);
-      __builtin_prefetch(bytes + 64, 0, 2);
+      __builtin_prefetch(bytes + sizeof(RayQuad) - 1, 0, 2);
     }
     for (int k = 0; k < kSlots; ++k) {
-      const RayQuad& quad = quad_of(slot[k]);
-      fill_quad(quad, world[static_cast<size_t>(slot[k].column)], k < used ? quad.count : 0, k * kQuadLanes, packet,
-                valid);
+      const int count = k < used ? geometry_.quad_rows(slot[k].quad).count : 0;
+      fill_quad(quad_of(slot[k]), world[static_cast<size_t>(slot[k].column)], count, k * kQuadLanes, packet, valid);
     }
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
     alignas(64) float cos_incidence[kLanes];
     incidence_lanes(packet, cos_incidence);
     for (int k = 0; k < used; ++k) {
       const auto c = static_cast<size_t>(slot[k].column);
-      retro[c] |= read_hits(packet, cos_incidence, optics_.data(), quad_of(slot[k]), k * kQuadLanes, group[c].out);
+      retro[c] |= read_hits(packet, cos_incidence, optics_.data(), geometry_.quad_rows(slot[k].quad), k * kQuadLanes,
+                            group[c].out);
     }
   }
   for (size_t c = 0; c < group.size(); ++c) {

@@ -151,7 +151,7 @@ std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int
         int i = r % 16;
         if (packing == Packing::kCasterQuads) {
           for (int q = 0; q < geometry.quads_per_column(); ++q) {
-            const RayQuad& quad = geometry.quad(m, q);
+            const QuadRows& quad = geometry.quad_rows(q);
             for (int j = 0; j < quad.count; ++j) {
               if (quad.rows[j] != r) continue;
               index = static_cast<size_t>((f * w + m / 4 * 4) * per_column + q);

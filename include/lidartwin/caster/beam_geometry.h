@@ -32,6 +32,8 @@ SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, in
 // share an azimuth offset, by elevation (an OS1-128's four offsets 2.8 degrees apart, each with
 // 32 rows), so a quad spans about 1.3 degrees and a packet of four columns about 1.4 x 4 degrees,
 // where 16 consecutive rows span 5.3 x 8.4. Lanes past the last row repeat it (masked off).
+// Which rows a quad holds is the same in every column (QuadRows), and so is tnear (the range
+// offset): the quads hold only what differs, 96 bytes.
 struct RayQuad {
   static constexpr int kLanes = 4;
   alignas(16) float org_x[kLanes];
@@ -40,9 +42,10 @@ struct RayQuad {
   alignas(16) float dir_x[kLanes];
   alignas(16) float dir_y[kLanes];
   alignas(16) float dir_z[kLanes];
-  alignas(16) float tnear[kLanes];
-  uint16_t rows[kLanes];  // the row of each lane
-  int count = 0;          // lanes in use
+};
+struct QuadRows {
+  uint16_t rows[RayQuad::kLanes];  // the row of each lane
+  int count = 0;                   // lanes in use
 };
 
 class BeamGeometry {
@@ -62,6 +65,8 @@ class BeamGeometry {
   // one 512-byte run each, and a group of columns one sequential stream.
   static constexpr int kGroupColumns = 4;
   int quads_per_column() const { return quads_per_column_; }
+  const QuadRows& quad_rows(int index) const { return quad_rows_[static_cast<size_t>(index)]; }
+  float range_offset_m() const { return range_offset_m_; }  // every ray's tnear
   const RayQuad& quad(int measurement_id, int index) const { return quads_[quad_index(measurement_id, index)]; }
 
  private:
@@ -73,8 +78,10 @@ class BeamGeometry {
   int columns_ = 0;
   int rows_ = 0;
   int quads_per_column_ = 0;
-  std::vector<RayQuad> quads_;         // the rays, four columns at a time
-  std::vector<int> slot_of_row_;       // [row]: quad * 4 + lane
+  std::vector<RayQuad> quads_;       // the rays, four columns at a time
+  std::vector<QuadRows> quad_rows_;  // [quad]
+  std::vector<int> slot_of_row_;     // [row]: quad * 4 + lane
+  float range_offset_m_ = 0.0f;
   BeamIntrinsics beams_;               // for point(), in double precision
   std::vector<float> row_spacing_;     // [rows - 1]
   std::vector<float> column_spacing_;  // [rows]
