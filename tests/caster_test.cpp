@@ -254,15 +254,18 @@ TEST_F(ColumnCasterScene, HitsTheWallWhereTheSdkPutsTheRange) {
   EXPECT_GT(hits, 1000);
 }
 
-// Columns cast together share packets (four rows of four columns); the returns must be those of
-// each column cast alone, whatever the group: four neighbours, fewer, columns apart, each from its
-// own pose. On the plant, where rays hit many surfaces at all depths.
+// Columns cast together share packets (a row of 16 neighbours, or several rows of fewer columns);
+// the returns must be those of each column cast alone, whatever the group: 16 neighbours, fewer,
+// columns apart, each from its own pose. On the plant, where rays hit many surfaces at all depths.
 TEST(ColumnCasterPlant, ColumnsCastTogetherReturnWhatEachReturnsAlone) {
   const Scene scene = Scene::load(std::filesystem::path(LIDARTWIN_SOURCE_DIR) / "scenes/plant.glb");
   const BeamIntrinsics beams = sample_beams();
   const BeamGeometry geometry(beams, 2048);
   const ColumnCaster caster(scene, geometry, 100.0f);
-  const std::vector<int> ids{100, 101, 102, 103, 104, 105, 106, 900, 901, 1500, 7};
+  // 16 neighbours as the renderer's blocks (one strip per packet), then a mixed group of 11.
+  std::vector<int> ids;
+  for (int m = 160; m < 176; ++m) ids.push_back(m);
+  ids.insert(ids.end(), {100, 101, 102, 103, 104, 105, 106, 900, 901, 1500, 7});
   std::vector<std::vector<IdealReturn>> together(ids.size(), std::vector<IdealReturn>(128));
   std::vector<Pose> poses(ids.size());
   std::vector<ColumnCaster::Column> columns;

@@ -77,7 +77,7 @@ SdkLutEntry lut_entry(const LutConstants& k, const RowAngles& row, const ColumnA
   return {k.rotation * d, kRangeUnit * (k.rotation * o + k.translation_mm)};
 }
 
-// The rows in cast order (RayQuad): sorted by azimuth offset, a gap of more than a quarter degree
+// The rows in cast order (RayStrip): sorted by azimuth offset, a gap of more than a quarter degree
 // starting a new group, each group in row order (Ouster rows fall in elevation), groups in
 // azimuth order. A sensor whose beams share one offset keeps its row order.
 std::vector<int> cast_order(const std::vector<RowAngles>& rows) {
@@ -131,37 +131,31 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
         static_cast<size_t>(std::lower_bound(offsets.begin(), offsets.end(), row.theta_a) - offsets.begin()));
   }
   std::vector<PixelAzimuth> azimuths(offsets.size());
-  // Written lane by lane straight into the quads, the only copy kept (3.5 KiB a column). Each
+  // Written lane by lane straight into the strips, the only copy kept (3 KiB a column). Each
   // float is converted from its own double: Eigen's cast of a whole vector read the entry back
   // with wider loads than the stores that wrote it, a store-forwarding stall per ray.
-  const std::vector<int> order = cast_order(rows);
-  quads_per_column_ = (rows_ + RayQuad::kLanes - 1) / RayQuad::kLanes;
-  const int groups = (columns_ + kGroupColumns - 1) / kGroupColumns;
-  quads_.resize(static_cast<size_t>(groups * kGroupColumns * quads_per_column_));
-  slot_of_row_.resize(static_cast<size_t>(rows_));
-  for (int slot = 0; slot < rows_; ++slot) slot_of_row_[static_cast<size_t>(order[static_cast<size_t>(slot)])] = slot;
+  cast_order_ = cast_order(rows);
+  cast_index_.resize(static_cast<size_t>(rows_));
+  for (int k = 0; k < rows_; ++k) cast_index_[static_cast<size_t>(cast_order_[static_cast<size_t>(k)])] = k;
   range_offset_m_ = static_cast<float>(kRangeUnit * constants.n);
-  for (int first = 0; first < rows_; first += RayQuad::kLanes) {
-    QuadRows& quad = quad_rows_.emplace_back();
-    quad.count = std::min(RayQuad::kLanes, rows_ - first);
-    for (int i = 0; i < RayQuad::kLanes; ++i) {  // lanes past the end repeat the last row
-      quad.rows[i] = static_cast<uint16_t>(order[static_cast<size_t>(first + std::min(i, quad.count - 1))]);
-    }
-  }
-  for (int m = 0; m < columns_; ++m) {
-    const ColumnAngles column = column_angles(columns_, m);
-    for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth(offsets[k], column);
-    for (int q = 0; q < quads_per_column_; ++q) {
-      RayQuad* quad = &quads_[quad_index(m, q)];
-      for (int i = 0; i < RayQuad::kLanes; ++i) {
-        const auto r = static_cast<size_t>(quad_rows_[static_cast<size_t>(q)].rows[i]);
+  constexpr int kStrip = RayStrip::kColumns;
+  const int groups = (columns_ + kStrip - 1) / kStrip;
+  strips_.resize(static_cast<size_t>(groups) * static_cast<size_t>(rows_));
+  for (int g = 0; g < groups; ++g) {
+    for (int c = 0; c < kStrip; ++c) {
+      const int m = std::min(g * kStrip + c, columns_ - 1);  // past the frame's end: repeat its last column
+      const ColumnAngles column = column_angles(columns_, m);
+      for (size_t k = 0; k < offsets.size(); ++k) azimuths[k] = pixel_azimuth(offsets[k], column);
+      for (int k = 0; k < rows_; ++k) {
+        const auto r = static_cast<size_t>(cast_order_[static_cast<size_t>(k)]);
         const SdkLutEntry entry = lut_entry(constants, rows[r], column, azimuths[offset_of_row[r]]);
-        quad->org_x[i] = static_cast<float>(entry.origin_m.x());
-        quad->org_y[i] = static_cast<float>(entry.origin_m.y());
-        quad->org_z[i] = static_cast<float>(entry.origin_m.z());
-        quad->dir_x[i] = static_cast<float>(entry.direction.x());
-        quad->dir_y[i] = static_cast<float>(entry.direction.y());
-        quad->dir_z[i] = static_cast<float>(entry.direction.z());
+        RayStrip& strip = strips_[static_cast<size_t>(g) * static_cast<size_t>(rows_) + static_cast<size_t>(k)];
+        strip.org_x[c] = static_cast<float>(entry.origin_m.x());
+        strip.org_y[c] = static_cast<float>(entry.origin_m.y());
+        strip.org_z[c] = static_cast<float>(entry.origin_m.z());
+        strip.dir_x[c] = static_cast<float>(entry.direction.x());
+        strip.dir_y[c] = static_cast<float>(entry.direction.y());
+        strip.dir_z[c] = static_cast<float>(entry.direction.z());
       }
     }
   }
@@ -175,9 +169,8 @@ BeamGeometry::BeamGeometry(const BeamIntrinsics& beams, int columns_per_frame)
 }
 
 BeamRay BeamGeometry::ray(int row, int measurement_id) const {
-  const int slot = slot_of_row_[static_cast<size_t>(row)];
-  const RayQuad& p = quad(measurement_id, slot / RayQuad::kLanes);
-  const int i = slot % RayQuad::kLanes;
+  const RayStrip& p = strip(measurement_id / RayStrip::kColumns, cast_index_[static_cast<size_t>(row)]);
+  const int i = measurement_id % RayStrip::kColumns;
   return {{p.org_x[i], p.org_y[i], p.org_z[i]}, {p.dir_x[i], p.dir_y[i], p.dir_z[i]}, range_offset_m_};
 }
 

@@ -1,4 +1,4 @@
-// Columns of beams cast with Embree: 16-ray coherent packets, four rows of four columns each.
+// Columns of beams cast with Embree: 16-ray coherent packets, one row of 16 neighbouring columns each.
 // The work around the cast is written as plain 16-lane loops so it vectorizes: the emulator's
 // budget per pixel after the cast is a few nanoseconds (DESIGN.md "Speed").
 #include "lidartwin/caster/column_caster.h"
@@ -14,8 +14,7 @@
 namespace lidartwin {
 namespace {
 
-constexpr int kLanes = 16;
-constexpr int kQuadLanes = RayQuad::kLanes;
+constexpr int kLanes = RayStrip::kColumns;
 constexpr size_t kMaxRows = 128;  // beams of the largest Ouster sensor
 
 // A depth step between two hits: farther apart than 0.3 m or 5 % of the farther range.
@@ -33,27 +32,34 @@ struct WorldTransform {
   }
 };
 
-// y = a*x0 + b*x1 + c*x2 + d over a quad's 4 lanes; restrict pointers and a fixed trip count let
-// the compiler vectorize it.
-void affine_lanes(const float* __restrict x0, const float* __restrict x1, const float* __restrict x2, const float* row,
-                  float d, float* __restrict y) {
-  const float a = row[0], b = row[1], c = row[2];
-  for (int i = 0; i < kQuadLanes; ++i) y[i] = a * x0[i] + b * x1[i] + c * x2[i] + d;
+// Each lane's world_from_sensor, structure of arrays: lane i's ray moves by its own column's pose.
+struct LaneTransforms {
+  alignas(64) float r[9][kLanes];
+  alignas(64) float t[3][kLanes];
+  void set(int lane, const WorldTransform& w) {
+    for (int j = 0; j < 9; ++j) r[j][lane] = w.r[j];
+    for (int j = 0; j < 3; ++j) t[j][lane] = w.t[j];
+  }
+};
+
+// y = a*x0 + b*x1 + c*x2 + d over 16 lanes, each with its own a, b, c, d; restrict pointers and a
+// fixed trip count let the compiler vectorize it.
+void affine_lanes(const float* __restrict x0, const float* __restrict x1, const float* __restrict x2,
+                  const float* __restrict a, const float* __restrict b, const float* __restrict c,
+                  const float* __restrict d, float* __restrict y) {
+  for (int i = 0; i < kLanes; ++i) y[i] = a[i] * x0[i] + b[i] * x1[i] + c[i] * x2[i] + d[i];
 }
 
-// A quad's sensor-frame rays into lanes [first, first + 4) of the packet, in the world (protocol
-// doc 7.2: the SDK's rays, moved by the pose of their column's time); `count` lanes are cast.
-inline void fill_quad(const RayQuad& rays, const WorldTransform& w, int count, int first, RTCRayHit16& packet,
-                      int* valid) {
-  RTCRay16& ray = packet.ray;
-  const auto f = static_cast<size_t>(first);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 0, w.t[0], ray.org_x + f);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 3, w.t[1], ray.org_y + f);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r + 6, w.t[2], ray.org_z + f);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 0, 0.0f, ray.dir_x + f);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 3, 0.0f, ray.dir_y + f);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r + 6, 0.0f, ray.dir_z + f);
-  for (int i = 0; i < kQuadLanes; ++i) valid[first + i] = i < count ? -1 : 0;
+// Sensor-frame rays into the world (protocol doc 7.2: the SDK's rays, moved by the pose of their
+// column's time). Directions add a zero translation, as origins add theirs.
+void transform_lanes(const RayStrip& rays, const LaneTransforms& w, RTCRay16& ray) {
+  alignas(64) static constexpr float kZero[kLanes] = {};
+  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[0], w.r[1], w.r[2], w.t[0], ray.org_x);
+  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[3], w.r[4], w.r[5], w.t[1], ray.org_y);
+  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[6], w.r[7], w.r[8], w.t[2], ray.org_z);
+  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[0], w.r[1], w.r[2], kZero, ray.dir_x);
+  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[3], w.r[4], w.r[5], kZero, ray.dir_y);
+  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[6], w.r[7], w.r[8], kZero, ray.dir_z);
 }
 
 // The fields every lane shares; tnear starts each ray at the physical beam origin.
@@ -89,29 +95,35 @@ void incidence_lanes(const RTCRayHit16& packet, float* out) {
 // of them, a store-forwarding stall per pixel that was 70 % of the caster's own time).
 constexpr IdealReturn kNoReturn{};
 
-// The hits of lanes [first, first + quad.count) into their rows of out; returns whether any is
+// Where lane i's ray came from: column (of the group) and the row's place in cast order.
+struct LaneSource {
+  std::array<uint8_t, kLanes> column;
+  std::array<uint16_t, kLanes> k;
+};
+
+// The first `used` lanes' hits into their columns' rows; sets retro[c] where a hit is
 // retroreflective.
-bool read_hits(const RTCRayHit16& packet, const float* cos_incidence, const ColumnCaster::SurfaceOptics* optics,
-               const QuadRows& quad, int first, std::span<IdealReturn> out) {
-  bool retro = false;
-  for (int lane = 0; lane < quad.count; ++lane) {
-    const auto i = static_cast<size_t>(first + lane);
-    const uint16_t row = quad.rows[lane];
-    IdealReturn& ideal = out[row];
+void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, const BeamGeometry& geometry,
+               const LaneSource& source, int used, std::span<const ColumnCaster::Column> group, bool* retro) {
+  alignas(64) float cos_incidence[kLanes];
+  incidence_lanes(packet, cos_incidence);
+  for (int i = 0; i < used; ++i) {
+    const auto lane = static_cast<size_t>(i);
+    const auto row = static_cast<uint16_t>(geometry.cast_row(source.k[lane]));
+    IdealReturn& ideal = group[source.column[lane]].out[row];
     ideal = kNoReturn;
     ideal.beam = row;
-    const unsigned geom_id = packet.hit.geomID[i];
+    const unsigned geom_id = packet.hit.geomID[lane];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
     const ColumnCaster::SurfaceOptics& material = optics[geom_id];
-    ideal.range_m = packet.ray.tfar[i];
-    ideal.cos_incidence = cos_incidence[i];
+    ideal.range_m = packet.ray.tfar[lane];
+    ideal.cos_incidence = cos_incidence[lane];
     ideal.reflectivity = material.reflectivity;
     ideal.specular = material.specular;
     ideal.material_id = geom_id;
     ideal.retroreflective = material.retroreflective;
-    retro |= material.retroreflective != 0;
+    retro[source.column[lane]] |= material.retroreflective != 0;
   }
-  return retro;
 }
 
 }  // namespace
@@ -213,68 +225,81 @@ void ColumnCaster::cast(int measurement_id, const Pose& world_from_sensor, std::
 }
 
 void ColumnCaster::cast(std::span<const Column> columns) const {
-  for (size_t first = 0; first < columns.size(); first += kColumnsPerPacket) {
-    cast_group(columns.subspan(first, std::min(kColumnsPerPacket, columns.size() - first)));
+  for (size_t first = 0; first < columns.size(); first += kGroupColumns) {
+    cast_group(columns.subspan(first, std::min(kGroupColumns, columns.size() - first)));
   }
 }
 
-// Packet k holds slots 4k .. 4k + 3, slot s being quad s / n of column s % n: with four columns,
-// the same quad of each; with fewer, neighbouring quads of the same columns (one column: 16 rows
-// of one azimuth offset, as fast as its 16 consecutive rows).
+// Lane sequence: slot s is row cast_row(s / n) of column s % n, n columns in the group. Sixteen
+// neighbouring columns aligned to a strip (the renderer's blocks) cast strip by strip, straight
+// from the geometry; any other group gathers its lanes' rays (fewer columns: several rows each).
 void ColumnCaster::cast_group(std::span<const Column> group) const {
   const int n = static_cast<int>(group.size());
-  assert(n >= 1 && n <= static_cast<int>(kColumnsPerPacket));
-  std::array<WorldTransform, kColumnsPerPacket> world;
+  assert(n >= 1 && n <= kLanes);
+  const int first_id = group[0].measurement_id;
+  bool whole_strip = n == kLanes && first_id % kLanes == 0;
+  std::array<WorldTransform, kLanes> world;
   for (int c = 0; c < n; ++c) {
     const Column& column = group[static_cast<size_t>(c)];
     assert(static_cast<int>(column.out.size()) == geometry_.rows());
     world[static_cast<size_t>(c)] = WorldTransform(*column.world_from_sensor);
+    whole_strip = whole_strip && column.measurement_id == first_id + c;
   }
-  // Slot s of the group is quad s / n of column s % n, counted up without a division.
-  struct Slot {
-    int column = 0;
-    int quad = 0;
-  };
-  const auto next_slot = [n](Slot slot) { return ++slot.column == n ? Slot{0, slot.quad + 1} : slot; };
-  const auto quad_of = [&](Slot slot) -> const RayQuad& {
-    return geometry_.quad(group[static_cast<size_t>(slot.column)].measurement_id, slot.quad);
-  };
+  alignas(64) LaneTransforms lanes;
+  LaneSource source{};
+  if (whole_strip) {
+    for (int i = 0; i < kLanes; ++i) {
+      lanes.set(i, world[static_cast<size_t>(i)]);
+      source.column[static_cast<size_t>(i)] = static_cast<uint8_t>(i);
+    }
+  }
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
-  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // neighbouring beams of neighbouring columns
-  constexpr int kSlots = kLanes / kQuadLanes;
-  const int slots = n * geometry_.quads_per_column();
-  std::array<bool, kColumnsPerPacket> retro{};
-  Slot first{};
-  for (int first_slot = 0; first_slot < slots; first_slot += kSlots) {
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one row of neighbouring columns
+  const int slots = n * geometry_.rows();
+  std::array<bool, kLanes> retro{};
+  int next_column = 0, next_k = 0;  // the next slot's source
+  for (int first = 0; first < slots; first += kLanes) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];
     init_packet(geometry_.range_offset_m(), max_range_m_, packet);
-    const int used = std::min(kSlots, slots - first_slot);
-    std::array<Slot, kSlots> slot;
-    slot[0] = first;
-    for (int k = 1; k < kSlots; ++k) slot[k] = k < used ? next_slot(slot[k - 1]) : slot[k - 1];  // repeats: masked off
-    first = next_slot(slot[kSlots - 1]);
-    // The next packet's rays are fetched while Embree casts this one: read after its traversal
-    // had filled the caches, they missed (a third of the caster's own time).
-    Slot ahead = first;
-    for (int k = 0; k < kSlots && ahead.quad < geometry_.quads_per_column(); ++k, ahead = next_slot(ahead)) {
-      const auto* bytes = reinterpret_cast<const char*>(&quad_of(ahead));  // 96 bytes: two lines at most
-      __builtin_prefetch(bytes, 0, 2);
-      __builtin_prefetch(bytes + sizeof(RayQuad) - 1, 0, 2);
-    }
-    for (int k = 0; k < kSlots; ++k) {
-      const int count = k < used ? geometry_.quad_rows(slot[k].quad).count : 0;
-      fill_quad(quad_of(slot[k]), world[static_cast<size_t>(slot[k].column)], count, k * kQuadLanes, packet, valid);
+    const int used = std::min(kLanes, slots - first);
+    if (whole_strip) {
+      const int k = first / kLanes;
+      source.k.fill(static_cast<uint16_t>(k));
+      std::fill(valid, valid + kLanes, -1);
+      transform_lanes(geometry_.strip(first_id / kLanes, k), lanes, packet.ray);
+      // The next strip (384 bytes) is fetched while Embree casts this one: read after its
+      // traversal had filled the caches, it missed.
+      if (k + 1 < geometry_.rows()) {
+        const auto* next = reinterpret_cast<const char*>(&geometry_.strip(first_id / kLanes, k + 1));
+        for (size_t offset = 0; offset < sizeof(RayStrip); offset += 64) __builtin_prefetch(next + offset, 0, 2);
+      }
+    } else {
+      alignas(64) RayStrip gathered;
+      for (int i = 0; i < kLanes; ++i) {
+        const auto lane = static_cast<size_t>(i);
+        if (i < used) {
+          source.column[lane] = static_cast<uint8_t>(next_column);
+          source.k[lane] = static_cast<uint16_t>(next_k);
+          if (++next_column == n) next_column = 0, ++next_k;
+        } else {  // past the last slot: repeat the last, masked off
+          source.column[lane] = source.column[lane - 1];
+          source.k[lane] = source.k[lane - 1];
+        }
+        valid[i] = i < used ? -1 : 0;
+        const int m = group[source.column[lane]].measurement_id;
+        const RayStrip& strip = geometry_.strip(m / kLanes, source.k[lane]);
+        const auto j = static_cast<size_t>(m % kLanes);
+        gathered.org_x[lane] = strip.org_x[j], gathered.org_y[lane] = strip.org_y[j];
+        gathered.org_z[lane] = strip.org_z[j], gathered.dir_x[lane] = strip.dir_x[j];
+        gathered.dir_y[lane] = strip.dir_y[j], gathered.dir_z[lane] = strip.dir_z[j];
+        lanes.set(i, world[source.column[lane]]);
+      }
+      transform_lanes(gathered, lanes, packet.ray);
     }
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    alignas(64) float cos_incidence[kLanes];
-    incidence_lanes(packet, cos_incidence);
-    for (int k = 0; k < used; ++k) {
-      const auto c = static_cast<size_t>(slot[k].column);
-      retro[c] |= read_hits(packet, cos_incidence, optics_.data(), geometry_.quad_rows(slot[k].quad), k * kQuadLanes,
-                            group[c].out);
-    }
+    read_hits(packet, optics_.data(), geometry_, source, used, group, retro.data());
   }
   for (size_t c = 0; c < group.size(); ++c) {
     mark_vertical_edges(group[c].out);

@@ -4,9 +4,9 @@
 //   (a) raw reference: the same world rays, each column's 128 beams as 16-ray packets through
 //       rtcIntersect16 with RTC_INTERSECT_CONTEXT_FLAG_COHERENT, all cores (rays prebuilt, only
 //       the packet copy and the intersect are timed);
-//   (a') the same rays packed as the caster packs them (ColumnCaster: four rows of four
-//       neighbouring columns per packet), timed the same way: Embree's speed on these rays the
-//       fastest way this project knows, against which (c) and (d) are also given;
+//   (a') the same rays packed as the caster packs them (ColumnCaster: one row of 16 neighbouring
+//       columns per packet), timed the same way: Embree's speed on these rays the fastest way this
+//       project knows, against which (c) and (d) are also given;
 //   (b) the same rays one per rtcIntersect1 call, all cores (for context);
 //   (c) the pipeline: pose per column, cast, effect chain, protocol units, packet encode with
 //       CRC-64 into packet buffers (the ForwardModel);
@@ -129,8 +129,8 @@ void parallel_columns(int threads, int count, const std::function<void(int)>& ta
 }
 
 // How the prebuilt rays are packed: a column's 16 consecutive rows (DESIGN.md's reference), or as
-// ColumnCaster packs them, the same RayQuad of four neighbouring columns.
-enum class Packing { kColumnRows, kCasterQuads };
+// ColumnCaster packs them, one row of 16 neighbouring columns (a RayStrip).
+enum class Packing { kColumnRows, kCasterStrips };
 
 // The world rays of `frames` frames, 16-ray packets (8 per 128-beam column), exactly the rays the
 // caster builds: pose at the column's time applied to the SDK rays (protocol doc 7.2).
@@ -145,19 +145,15 @@ std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int
       const Eigen::Matrix3f rotation = pose.rotation.toRotationMatrix().cast<float>();
       const Eigen::Vector3f translation = pose.translation.cast<float>();
       for (int r = 0; r < h; ++r) {
-        // kCasterQuads: row r sits in quad q (lane j) of its column's cast order; four columns
-        // 4g .. 4g + 3 share packets, packet q of the group holding quad q of each.
+        // kCasterStrips: columns 16g .. 16g + 15 share packets, packet k of the group holding
+        // row cast_row(k) of each, lane m % 16.
         size_t index = static_cast<size_t>((f * w + m) * per_column + r / 16);
         int i = r % 16;
-        if (packing == Packing::kCasterQuads) {
-          for (int q = 0; q < geometry.quads_per_column(); ++q) {
-            const QuadRows& quad = geometry.quad_rows(q);
-            for (int j = 0; j < quad.count; ++j) {
-              if (quad.rows[j] != r) continue;
-              index = static_cast<size_t>((f * w + m / 4 * 4) * per_column + q);
-              i = (m % 4) * 4 + j;
-            }
+        if (packing == Packing::kCasterStrips) {
+          for (int k = 0; k < h; ++k) {
+            if (geometry.cast_row(k) == r) index = static_cast<size_t>((f * w + m / 16 * 16) * per_column + k);
           }
+          i = m % 16;
         }
         RTCRay16& p = packets[index];
         const BeamRay& ray = geometry.ray(r, m);
@@ -299,7 +295,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
       only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m());
   const auto quad_rays =
       only_pipeline ? std::vector<RTCRay16>()
-                    : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m(), Packing::kCasterQuads);
+                    : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m(), Packing::kCasterStrips);
   Rate raw16, raw_quads, raw1, cast, recorded;
   PipelineRate pipe{};
   const auto keep_best = [](Rate& best, const Rate& r) {

@@ -26,26 +26,21 @@ struct SdkLutEntry {
 };
 SdkLutEntry sdk_lut_entry(const BeamIntrinsics& beams, int columns_per_frame, int row, int measurement_id);
 
-// The same rays, four rows of a column at a time in Embree's structure-of-arrays order: the
-// caster fills a 16-ray packet with four quads, the same quad of four neighbouring columns, whose
-// rays lie close together (ColumnCaster). A column's rows go into quads in cast order: rows that
-// share an azimuth offset, by elevation (an OS1-128's four offsets 2.8 degrees apart, each with
-// 32 rows), so a quad spans about 1.3 degrees and a packet of four columns about 1.4 x 4 degrees,
-// where 16 consecutive rows span 5.3 x 8.4. Lanes past the last row repeat it (masked off).
-// Which rows a quad holds is the same in every column (QuadRows), and so is tnear (the range
-// offset): the quads hold only what differs, 96 bytes.
-struct RayQuad {
-  static constexpr int kLanes = 4;
-  alignas(16) float org_x[kLanes];
-  alignas(16) float org_y[kLanes];
-  alignas(16) float org_z[kLanes];
-  alignas(16) float dir_x[kLanes];
-  alignas(16) float dir_y[kLanes];
-  alignas(16) float dir_z[kLanes];
-};
-struct QuadRows {
-  uint16_t rows[RayQuad::kLanes];  // the row of each lane
-  int count = 0;                   // lanes in use
+// The same rays, one row of 16 neighbouring columns at a time (a strip) in Embree's
+// structure-of-arrays order: the caster casts a strip as one 16-ray packet (ColumnCaster), whose
+// rays lie within 16 column steps (2.8 degrees at 2048 columns) along one row. Embree traverses
+// these about twice as fast as a column's 16 consecutive rows, whose four azimuth offsets spread a
+// packet over 8.4 x 5.3 degrees (tests/bench/pipeline_bench.cpp). The strips of a column group
+// come in cast order (cast_row): rows sharing an azimuth offset, by elevation, so consecutive
+// packets stay close too. Rays only: tnear (the range offset) is the same for every ray.
+struct RayStrip {
+  static constexpr int kColumns = 16;
+  alignas(64) float org_x[kColumns];
+  alignas(64) float org_y[kColumns];
+  alignas(64) float org_z[kColumns];
+  alignas(64) float dir_x[kColumns];
+  alignas(64) float dir_y[kColumns];
+  alignas(64) float dir_z[kColumns];
 };
 
 class BeamGeometry {
@@ -60,27 +55,20 @@ class BeamGeometry {
   // row r + 1 of a column, and row r in adjacent columns.
   float row_spacing_rad(int row) const { return row_spacing_[static_cast<size_t>(row)]; }
   float column_spacing_rad(int row) const { return column_spacing_[static_cast<size_t>(row)]; }
-  // A column's rays as quads_per_column() quads, in cast order. Stored four columns at a time,
-  // quad by quad (the same quad of columns 4g .. 4g + 3 side by side): the caster's packets read
-  // one 512-byte run each, and a group of columns one sequential stream.
-  static constexpr int kGroupColumns = 4;
-  int quads_per_column() const { return quads_per_column_; }
-  const QuadRows& quad_rows(int index) const { return quad_rows_[static_cast<size_t>(index)]; }
-  float range_offset_m() const { return range_offset_m_; }  // every ray's tnear
-  const RayQuad& quad(int measurement_id, int index) const { return quads_[quad_index(measurement_id, index)]; }
+  // The rays of columns 16g .. 16g + 15 at the row cast_row(k): strip(g, k).x[c] is column 16g + c
+  // (columns past the frame's last repeat it). A group's strips are one sequential stream.
+  const RayStrip& strip(int group, int k) const {
+    return strips_[static_cast<size_t>(group) * static_cast<size_t>(rows_) + static_cast<size_t>(k)];
+  }
+  int cast_row(int k) const { return cast_order_[static_cast<size_t>(k)]; }  // k-th row in cast order
+  float range_offset_m() const { return range_offset_m_; }                   // every ray's tnear
 
  private:
-  size_t quad_index(int measurement_id, int index) const {
-    const int group = measurement_id / kGroupColumns, column = measurement_id % kGroupColumns;
-    return static_cast<size_t>((group * quads_per_column_ + index) * kGroupColumns + column);
-  }
-
   int columns_ = 0;
   int rows_ = 0;
-  int quads_per_column_ = 0;
-  std::vector<RayQuad> quads_;       // the rays, four columns at a time
-  std::vector<QuadRows> quad_rows_;  // [quad]
-  std::vector<int> slot_of_row_;     // [row]: quad * 4 + lane
+  std::vector<RayStrip> strips_;  // [group][k]: the rays
+  std::vector<int> cast_order_;   // [k]: a row
+  std::vector<int> cast_index_;   // [row]: its k
   float range_offset_m_ = 0.0f;
   BeamIntrinsics beams_;               // for point(), in double precision
   std::vector<float> row_spacing_;     // [rows - 1]

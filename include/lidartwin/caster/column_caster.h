@@ -25,13 +25,14 @@ class ColumnCaster {
     const Pose* world_from_sensor;
     std::span<IdealReturn> out;
   };
-  // Casts the columns four at a time: a packet holds the same RayQuad of four columns (4 rows x 4
-  // columns), which Embree traverses about 1.7x faster than a column's 16 consecutive rows
-  // (tests/bench/pipeline_bench.cpp), with the same rays and so the same returns. Neighbouring
-  // columns in order cast fastest. Thread-safe (const): workers cast different columns at once.
+  // Casts the columns 16 at a time: a packet holds one row of the 16 (a RayStrip when they are 16
+  // neighbours aligned as the geometry stores them, as the renderer's blocks are), which Embree
+  // traverses about twice as fast as a column's 16 consecutive rows (tests/bench/pipeline_bench.cpp),
+  // with the same rays and so the same returns. Fewer columns share packets with several rows
+  // each. Thread-safe (const): workers cast different columns at once.
   void cast(std::span<const Column> columns) const;
   void cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const;
-  static constexpr size_t kColumnsPerPacket = 4;
+  static constexpr size_t kGroupColumns = RayStrip::kColumns;
 
   // What a hit needs from its material, by geomID: copied from the scene once, so a hit reads a
   // flat array instead of calling across modules for every pixel.
@@ -47,7 +48,7 @@ class ColumnCaster {
   float max_range_m_;
   std::vector<SurfaceOptics> optics_;
 
-  void cast_group(std::span<const Column> group) const;  // at most kColumnsPerPacket
+  void cast_group(std::span<const Column> group) const;  // at most kGroupColumns
 };
 
 // Sets IdealReturn::edge from the vertical neighbours in a column: 1 where a neighbour's range
