@@ -28,8 +28,9 @@ class ColumnCaster {
   // Casts the columns 16 at a time: a packet holds one row of the 16 (a RayStrip when they are 16
   // neighbours aligned as the geometry stores them, as the renderer's blocks are), which Embree
   // traverses about twice as fast as a column's 16 consecutive rows (tests/bench/pipeline_bench.cpp),
-  // with the same rays and so the same returns. Fewer columns share packets with several rows
-  // each. Thread-safe (const): workers cast different columns at once.
+  // with the same rays and so the same returns (but where a ray meets two coincident surfaces at
+  // one distance: which of the two). Fewer columns share packets with several rows each.
+  // Thread-safe (const): workers cast different columns at once.
   void cast(std::span<const Column> columns) const;
   void cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const;
   static constexpr size_t kGroupColumns = RayStrip::kColumns;
