@@ -353,9 +353,19 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   table.start_s = observed.empty() ? 0.0 : static_cast<double>(first_stamp) * 1e-9;
 
   std::atomic<bool> no_spread{false};
-  std::vector<std::vector<IdealReturn>> scratch(static_cast<size_t>(pool.size()),
-                                                std::vector<IdealReturn>(static_cast<size_t>(height)));
-  constexpr int kColumnsPerItem = 16;
+  // An item's columns are cast together (ColumnCaster: a frame's 16 aligned neighbours one row per
+  // packet), then predicted column by column.
+  constexpr int kColumnsPerItem = static_cast<int>(ColumnCaster::kGroupColumns);
+  struct Scratch {
+    std::vector<std::vector<IdealReturn>> ideal;  // [column of the item][row]
+    std::vector<Pose> poses;
+    std::vector<ColumnCaster::Column> cast;
+  };
+  std::vector<Scratch> scratch(static_cast<size_t>(pool.size()),
+                               Scratch{std::vector<std::vector<IdealReturn>>(
+                                           kColumnsPerItem, std::vector<IdealReturn>(static_cast<size_t>(height))),
+                                       std::vector<Pose>(kColumnsPerItem),
+                                       {}});
   const int items = static_cast<int>((observed.size() + kColumnsPerItem - 1) / kColumnsPerItem);
   std::atomic<int> items_done{0};
   std::atomic<int> percent_shown{0};
@@ -372,14 +382,23 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
     }
   };
   pool.run(items, [&](int worker, int item) {
-    std::vector<IdealReturn>& ideal = scratch[static_cast<size_t>(worker)];
-    const size_t end = std::min(observed.size(), static_cast<size_t>(item + 1) * kColumnsPerItem);
-    for (size_t i = static_cast<size_t>(item) * kColumnsPerItem; i < end; ++i) {
+    Scratch& s = scratch[static_cast<size_t>(worker)];
+    const size_t begin = static_cast<size_t>(item) * kColumnsPerItem;
+    const size_t end = std::min(observed.size(), begin + kColumnsPerItem);
+    s.cast.clear();
+    for (size_t i = begin; i < end; ++i) {
+      const ObservedColumn& oc = observed[i];
+      const uint64_t stamp = setup.capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)];
+      Pose& pose = s.poses[i - begin] = setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s);
+      s.cast.push_back({oc.column, &pose, s.ideal[i - begin]});
+    }
+    caster.cast(s.cast);
+    for (size_t i = begin; i < end; ++i) {
       const ObservedColumn& oc = observed[i];
       const Scan& scan = setup.capture.frames[oc.frame].scan;
       const int m = oc.column;
       const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
-      caster.cast(m, setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s), ideal);
+      const std::vector<IdealReturn>& ideal = s.ideal[i - begin];
       ColumnContext column_context = context;
       column_context.frame = oc.frame;
       column_context.column = static_cast<uint32_t>(m);
