@@ -139,6 +139,8 @@ std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int
   const int w = s.format().columns_per_frame, h = s.format().pixels_per_column, per_column = (h + 15) / 16;
   const BeamGeometry geometry(s.profile.beams, w);
   std::vector<RTCRay16> packets(static_cast<size_t>(frames) * static_cast<size_t>(w * per_column));
+  std::vector<int> cast_index(static_cast<size_t>(h));  // [row]: its place k in the caster's cast order
+  for (int k = 0; k < h; ++k) cast_index[static_cast<size_t>(geometry.cast_row(k))] = k;
   for (int f = 0; f < frames; ++f) {
     for (int m = 0; m < w; ++m) {
       const Pose pose = column_pose(poses, f, m, w);
@@ -150,9 +152,7 @@ std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int
         size_t index = static_cast<size_t>((f * w + m) * per_column + r / 16);
         int i = r % 16;
         if (packing == Packing::kCasterStrips) {
-          for (int k = 0; k < h; ++k) {
-            if (geometry.cast_row(k) == r) index = static_cast<size_t>((f * w + m / 16 * 16) * per_column + k);
-          }
+          index = static_cast<size_t>((f * w + m / 16 * 16) * per_column + cast_index[static_cast<size_t>(r)]);
           i = m % 16;
         }
         RTCRay16& p = packets[index];
