@@ -28,7 +28,7 @@ using analysis_detail::make_features;
 using analysis_detail::model_of;
 
 // The binnings reported: each feature alone, and the pairs the physics says interact (3.2).
-std::vector<std::vector<std::string>> binnings(const Features& f, bool static_mode) {
+std::vector<std::vector<std::string>> binnings(const Features& f, PixelTable::Reference reference) {
   std::vector<std::vector<std::string>> out;
   for (const char* name : {"range", "incidence", "reflectivity", "signal", "near_ir", "beam", "azimuth", "time", "edge",
                            "retro", "material"}) {
@@ -39,10 +39,13 @@ std::vector<std::vector<std::string>> binnings(const Features& f, bool static_mo
   out.push_back({"range", "beam_group"});
   out.push_back({"azimuth", "range"});
   out.push_back({"range", "edge"});
-  if (static_mode) {  // what needs the scene's surfaces is unknown
-    std::erase_if(out, [](const std::vector<std::string>& names) {
-      return std::ranges::any_of(names, [](const std::string& n) {
-        return n == "incidence" || n == "material" || n == "retro" || n == "edge";
+  // Without a scene what needs its surfaces is unknown: static mode knows no surface at all, map
+  // mode knows the surface's normal (incidence) but no materials, and leaves out pixels near edges.
+  if (reference != PixelTable::Reference::kScene) {
+    const bool keep_incidence = reference == PixelTable::Reference::kMap;
+    std::erase_if(out, [&](const std::vector<std::string>& names) {
+      return std::ranges::any_of(names, [&](const std::string& n) {
+        return (n == "incidence" && !keep_incidence) || n == "material" || n == "retro" || n == "edge";
       });
     });
   }
@@ -54,7 +57,8 @@ std::vector<std::vector<std::string>> binnings(const Features& f, bool static_mo
 struct Acc {
   size_t pixels = 0, returns = 0, inliers = 0, outliers = 0;
   double pd = 0, pd_var = 0;
-  double z = 0, z2 = 0, e = 0, eb = 0, eb2 = 0, bias = 0, sigma2 = 0, sheppard = 0;
+  double z = 0, e = 0, eb = 0, eb2 = 0, bias = 0, sigma2 = 0, sheppard = 0;
+  double dof = 0, wz2 = 0;  // degrees of freedom and the z^2 they weigh (PixelTable::dof_share)
   double outliers_expected = 0;
   double nll = 0, nll_expected = 0;
 };
@@ -78,8 +82,10 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   const double e = (f64(t.range_m[i])) - f64(t.ideal_range_m[i]);
   const double bias = f64(s.mean_m[i]) - f64(t.ideal_range_m[i]);  // bias + the window's shift
   const double sigma = f64(s.sd_m[i]);
+  const double w = t.dof_share(i);
   a.z += z;
-  a.z2 += z * z;
+  a.dof += w;
+  a.wz2 += w * z * z;
   a.e += e;
   a.eb += e - bias;
   a.eb2 += (e - bias) * (e - bias);
@@ -146,13 +152,14 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     // z's variance under the model: 1, plus the quantization of the measured range (Sheppard).
     const double v = 1.0 + a.sheppard / n;
     const double z_mean = a.z / n;
-    const double ratio2 = std::max(a.z2 / n - z_mean * z_mean, 0.0) / v;
+    // Residuals about a temporal mean weigh by their share of the degrees of freedom (1 elsewhere).
+    const double ratio2 = std::max(a.wz2 / a.dof - z_mean * z_mean, 0.0) / v;
     b.spread_ratio = std::sqrt(ratio2);
     b.misfit_bias = n * z_mean * z_mean / (2.0 * v);
     b.misfit_spread = ratio2 > 0.0 ? n * (-0.5 * std::log(ratio2) + 0.5 * ratio2 - 0.5) : 0.0;
     if (a.inliers >= kMinTested) {
       raw.bias = two_sided_normal(a.z / std::sqrt(n * v));
-      const double cdf = chi2_cdf(n * ratio2, n - 1.0);
+      const double cdf = chi2_cdf(a.dof * ratio2, a.dof - 1.0);
       raw.spread = std::min(1.0, 2.0 * std::min(cdf, 1.0 - cdf));
     }
   }
@@ -341,7 +348,7 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, con
   // Every binning: accumulate over pixels that meet a surface, then summarize and test.
   const Features features = make_features(t);
   std::vector<RawTests> raw;
-  for (const auto& names : binnings(features, options.static_mode)) {
+  for (const auto& names : binnings(features, t.reference)) {
     std::vector<const Feature*> fs;
     for (const auto& name : names) fs.push_back(&features[name]);
     const int n2 = fs.size() > 1 ? fs[1]->bins() : 1;
@@ -357,7 +364,8 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, con
       if (acc[k].pixels == 0) continue;
       RawTests tests;
       BinMisfit bin = summarize(acc[k], tests);
-      if (options.static_mode) tests.bias = -1;  // the mean is the data's own
+      if (t.reference == PixelTable::Reference::kTemporalMean) tests.bias = -1;  // the mean is the data's own
+      if (t.reference == PixelTable::Reference::kMap) tests.detection = -1;      // returns only
       const auto k0 = static_cast<int>(k) / n2, k1 = static_cast<int>(k) % n2;
       const auto public_name = [](const std::string& name) {
         return name == "beam_group" ? std::string("beam") : name;

@@ -13,6 +13,7 @@
 
 #include <fmt/format.h>
 
+#include "analysis/capture_points.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
 #include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/column_caster.h"
@@ -28,20 +29,8 @@ struct ObservedColumn {
   size_t first_pixel = 0;
 };
 
-bool column_valid(const Scan& scan, int m, UdpProfileLidar profile, int columns_per_packet) {
-  if (scan.packet_received[static_cast<size_t>(m / columns_per_packet)] == 0) return false;
-  const uint32_t status = scan.status[static_cast<size_t>(m)];
-  return profile == UdpProfileLidar::kLegacy ? status == 0xFFFF'FFFFu : (status & 1u) != 0;
-}
-
 float channel_value(const Scan& scan, ChannelField field, int m, int r, float scale) {
   return scan.has(field) ? static_cast<float>(scan.at(field, m, r)) * scale : 0.0f;
-}
-
-// signal_multiplier scales SIGNAL as the sensor's config says (protocol doc 3.5); 1 when absent.
-float signal_gain_of(const Metadata& metadata) {
-  const auto it = metadata.config_params.find("signal_multiplier");
-  return it != metadata.config_params.end() && it->is_number() ? it->get<float>() : 1.0f;
 }
 
 // Whether two neighbouring beams' ideal ranges lie on different surfaces: one hits and the other
@@ -213,7 +202,9 @@ void PixelTable::resize(size_t n) {
                   &expected_near_ir,
                   &window_min_m,
                   &window_max_m,
-                  &step_m}) {
+                  &step_m,
+                  &reference_scale,
+                  &reference_variance_m2}) {
     v->resize(n);
   }
   for (auto* v : {&retro, &edge, &retro_rows}) v->resize(n);
@@ -253,7 +244,9 @@ void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
 void PixelTable::set_prediction(size_t i, const Prediction& prediction, const RangeModel& model) {
   // Off a surface the model's mean is its only component's (a halo's, range_model): kept so that
   // the model rebuilt from the table (misfit_features.cpp) is the one scored.
-  predicted_bias_m[i] = static_cast<float>(ideal_range_m[i] > 0.0f ? prediction.bias_m : model.mean_m);
+  // A data reference carries the sensor's own bias (model_for leaves it out).
+  const double bias = reference == Reference::kScene ? prediction.bias_m : 0.0;
+  predicted_bias_m[i] = static_cast<float>(ideal_range_m[i] > 0.0f ? bias : model.mean_m);
   predicted_sigma_m[i] = static_cast<float>(model.sigma_m);
   p_detect[i] = static_cast<float>(model.p_detect);
   outlier_mix[i] = static_cast<float>(model.outlier_mix);
@@ -293,14 +286,31 @@ ColumnContext PixelTable::context_of(size_t i) const {
   return c;
 }
 
+RangeModel PixelTable::model_for(size_t i, Prediction prediction) const {
+  if (reference != Reference::kScene) {
+    prediction.bias_m = 0.0;  // the reference is the sensor's own: it carries its mean bias
+    if (reference == Reference::kMap) prediction.p_detect = 1.0;  // only returns are in a map table
+  }
+  RangeModel model = range_model(prediction, static_cast<double>(ideal_range_m[i]), static_cast<double>(step_m[i]),
+                                 static_cast<double>(window_max_m[i]));
+  if (reference != Reference::kScene && model.sigma_m > 0.0) {
+    const double scale = static_cast<double>(reference_scale[i]);
+    const double add = static_cast<double>(reference_variance_m2[i]);
+    const auto adjusted = [&](double sigma) { return std::sqrt(sigma * sigma * scale + add); };
+    if (model.partner_sigma_m > 0.0) model.partner_sigma_m = adjusted(model.partner_sigma_m);
+    model.sigma_m = adjusted(model.sigma_m);
+  }
+  return model;
+}
+
+void PixelTable::predict(size_t i, const EffectChain& chain) {
+  const Prediction p = chain.predict(ideal_of(i), context_of(i));
+  set_prediction(i, p, model_for(i, p));
+}
+
 PixelTable repredicted(const PixelTable& t, const EffectChain& chain) {
   PixelTable out = t;
-  for (size_t i = 0; i < t.size(); ++i) {
-    const IdealReturn ideal = t.ideal_of(i);
-    const Prediction p = chain.predict(ideal, t.context_of(i));
-    const RangeModel model = range_model(p, ideal.range_m, t.step_m[i], t.window_max_m[i]);
-    out.set_prediction(i, p, model);
-  }
+  for (size_t i = 0; i < t.size(); ++i) out.predict(i, chain);
   return out;
 }
 
@@ -318,7 +328,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   ColumnContext context;
   context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
   context.max_wire_range_m = static_cast<float>(wire_max_m);
-  context.signal_gain = signal_gain_of(metadata);
+  context.signal_gain = analysis_detail::signal_gain_of(metadata);
   context.columns_per_frame = static_cast<uint32_t>(width);
 
   // Which columns were observed, and where their pixels go; pose times checked before any cast.
@@ -327,7 +337,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   for (size_t f = 0; f < setup.capture.frames.size(); ++f) {
     const Scan& scan = setup.capture.frames[f].scan;
     for (int m = 0; m < width; ++m) {
-      if (!column_valid(scan, m, format.udp_profile_lidar, format.columns_per_packet)) continue;
+      if (!analysis_detail::column_valid(scan, m, format)) continue;
       const double t = static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9 + setup.time_offset_s;
       if (!span.contains(t)) {
         throw InputError(fmt::format(

@@ -15,7 +15,9 @@
 namespace lidartwin {
 namespace {
 
-constexpr size_t kMinFrames = 5;
+// Two frames give each pixel a spread about its mean (one degree of freedom, which the misfit's
+// tests count: PixelTable::dof_share).
+constexpr size_t kMinFrames = 2;
 
 struct Series {
   size_t returns = 0;
@@ -110,6 +112,7 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
     }
   }
   PixelTable t;
+  t.reference = PixelTable::Reference::kTemporalMean;
   t.resize(kept * frames);
   t.context = context;
   t.start_s = static_cast<double>(first_stamp) * 1e-9;
@@ -124,21 +127,16 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         const auto n = static_cast<double>(s.returns);
         IdealReturn ideal = ideal_of(s);
         ideal.beam = static_cast<uint16_t>(r);
-        ColumnContext column_context = context;
-        column_context.frame = f;
-        column_context.column = static_cast<uint32_t>(m);
-        const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
-        column_context.time_s = stamp >= first_stamp ? static_cast<double>(stamp - first_stamp) * 1e-9 : 0.0;
-        const Prediction prediction = setup.chain.predict(ideal, column_context);
-        const RangeModel model = range_model(prediction, ideal.range_m, context.range_step_m, reach);
         t.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
         t.set_ideal(p, ideal);
-        t.set_prediction(p, prediction, model);
         t.material[p] = 0xFFFF;  // no scene: no material; incidence, edges and retros unknown (not binned)
         t.edge[p] = t.retro[p] = PixelTable::kFarPixels;
-        t.predicted_bias_m[p] = 0.0f;  // the mean is the data's own
         // Residuals about a mean estimated from the same n returns spread by sqrt(1 - 1/n) less.
-        t.predicted_sigma_m[p] = static_cast<float>(model.sigma_m * std::sqrt(1.0 - 1.0 / n));
+        t.reference_scale[p] = static_cast<float>(1.0 - 1.0 / n);
+        t.reference_variance_m2[p] = 0.0f;
+        t.step_m[p] = context.range_step_m;  // the window and step the prediction is scored with
+        t.window_max_m[p] = static_cast<float>(reach);
+        t.predict(p, setup.chain);
         ++p;
       }
     }

@@ -51,15 +51,11 @@ int run_compare(const CompareFlags& flags) {
     profiles.push_back(load_profile(name));
     chains.push_back(EffectChain::from_json(profiles.back().effects, "profile " + profiles.back().name + ": /effects"));
   }
-  if (profiles.size() > 1 && flags.measured.static_mode) {
-    throw InputError("--static compares one --profile (its predictions are tied to the temporal means)");
-  }
   Steps steps;
   const Measured measured = measure(flags.measured, profiles.front(), chains.front(), steps);
   const std::string capture_name = measured.inputs["capture"].get<std::string>();
   MisfitOptions options;
   options.alpha = flags.alpha;
-  options.static_mode = flags.measured.static_mode;
   // Several profiles: each scored on the same pixels (the waterfall); the report is of the last.
   std::vector<WaterfallStep> waterfall;
   PixelTable other;  // a later profile's predictions (the first profile's table is not copied)
@@ -107,6 +103,23 @@ int run_compare(const CompareFlags& flags) {
   const MisfitSummary& s = misfit.summary;
   std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
               capture_name.c_str(), profile.name.c_str());
+  if (measured.registration) {
+    const FrameRegistration& r = *measured.registration;
+    measured.registration->trajectory.save_tum(fs::path(flags.out) / "registered_poses.tum");
+    std::printf(
+        "frames registered to each other: the sensor travelled %.2f m; %zu point-to-plane pairs, RMS %.1f mm after "
+        "%d iterations (%s/registered_poses.tum)\n",
+        r.path_length_m, r.pairs, 1000 * r.rms_m, r.iterations, flags.out.c_str());
+  }
+  if (measured.map) {
+    const MapExclusions& x = *measured.map;
+    const auto share = [&](size_t n) { return x.returns > 0 ? 100.0 * static_cast<double>(n) / x.returns : 0.0; };
+    std::printf(
+        "map: %zu of %zu returns compared (%.1f %%); left out: %zu beside depth steps, %zu with too few points of "
+        "other frames around them, %zu on no smooth surface, %zu off the surface other frames saw, %zu at grazing "
+        "incidence\n",
+        x.compared, x.returns, share(x.compared), x.edge, x.unsupported, x.not_surface, x.off_surface, x.grazing);
+  }
   if (measured.refinement) {
     const PoseRefinement& r = *measured.refinement;
     std::printf(
@@ -176,7 +189,7 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<CompareFlags>();
   CLI::App* sub = app.add_subcommand(
       "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/pixels.npz");
-  add_measured_options(sub, flags->measured, /*with_static=*/true);
+  add_measured_options(sub, flags->measured);
   sub->add_option("--profile", flags->profiles,
                   "profile whose effect chain is compared (name or .json); several: a waterfall of the error "
                   "across them, the report of the last")
@@ -188,8 +201,7 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--seed", flags->seed, "seed of the PIT's tie-breaking draws")->capture_default_str();
   sub->add_flag("!--no-plots", flags->plots, "skip report.html (tools/compare-plots.py)");
   sub->add_flag("--diagnose", flags->diagnose,
-                "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing")
-      ->excludes("--static");
+                "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing");
   sub->add_flag("--keep-profile", flags->keep_profile,
                 "with --diagnose: do not refit the profile's own effects' parameters (parameter misfit) first")
       ->needs("--diagnose");

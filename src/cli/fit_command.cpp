@@ -106,7 +106,7 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<FitFlags>();
   CLI::App* sub =
       app.add_subcommand("fit", "Add effects to a profile and fit them to a measured capture: writes a new profile");
-  add_measured_options(sub, flags->measured, /*with_static=*/false);
+  add_measured_options(sub, flags->measured);
   sub->add_option("--profile", flags->profile, "the profile to extend (name or .json)")->required();
   auto* add = sub->add_option("--add", flags->add, "effects to add and fit, in order (registry names)");
   sub->add_flag("--auto", flags->automatic, "add what the diagnosis selects, one at a time while BIC improves")

@@ -30,12 +30,18 @@ Inputs resolve_inputs(const MeasuredFlags& flags) {
     const fs::path dir = in.capture;
     in.capture = dir / "capture.pcap";
     if (in.metadata.empty()) in.metadata = dir / "metadata.json";
-    if (in.pose.empty() && fs::exists(dir / "poses.tum")) in.pose = dir / "poses.tum";
+    // Its ground truth, but not for --map, which places the frames itself unless --pose says how.
+    if (in.pose.empty() && !flags.map_mode && fs::exists(dir / "poses.tum")) in.pose = dir / "poses.tum";
   }
   if (!fs::is_regular_file(in.capture)) throw InputError("--capture " + in.capture.string() + ": no such capture file");
   if (in.metadata.empty()) throw InputError("give --metadata (the capture's sensor metadata JSON)");
   if (flags.static_mode) return {in.capture, in.metadata, {}};
-  if (flags.scene.empty()) throw InputError("give --scene (the glTF scene of the measured place), or --static");
+  if (flags.map_mode) return in;  // --pose optional: without it the frames are registered
+  if (flags.scene.empty()) {
+    throw InputError(
+        "give --scene (the glTF scene of the measured place), or --map (a moving sensor, no scene), or --static "
+        "(a motionless one)");
+  }
   if (in.pose.empty()) {
     throw InputError("give --pose (a TUM file: one line for a static sensor, or a trajectory)");
   }
@@ -97,6 +103,35 @@ SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const 
   return out;
 }
 
+// Map mode: the frames placed by --pose or registered to each other, each return against the
+// surface the other frames saw.
+void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, const EffectChain& chain,
+               const SensorProfile& profile, Steps& steps) {
+  std::unique_ptr<PoseSource> poses;
+  if (!in.pose.empty()) {
+    poses = load_measured_poses(in.pose);
+  } else {
+    steps.start("registering the frames to each other");
+    RegistrationOptions options;
+    options.max_range_m = profile.max_range_m;
+    out.registration = register_frames(out.capture, options);
+    const Trajectory& trajectory = out.registration->trajectory;
+    const PoseSpan span{trajectory.start_s(), trajectory.start_s() + trajectory.duration_s()};
+    poses = std::make_unique<TrajectoryPoses>(trajectory, span);
+    steps.done();
+  }
+  steps.start("fitting each return's surface from the other frames and predicting it");
+  WorkerPool pool(flags.threads);
+  MapTableSetup setup{out.capture, *poses, in.pose.empty() ? 0.0 : flags.time_offset_s, chain, profile.max_range_m};
+  setup.progress = [&steps](double fraction) {
+    steps.progress("fitting each return's surface from the other frames and predicting it", fraction);
+  };
+  MapTable map = build_map_table(setup, pool);
+  steps.done();
+  out.table = std::move(map.table);
+  out.map = map.excluded;
+}
+
 nlohmann::json refinement_json(const PoseRefinement& r) {
   const Eigen::Vector3d t = r.correction.translation;
   const Eigen::Quaterniond q = r.correction.rotation;
@@ -111,7 +146,7 @@ nlohmann::json refinement_json(const PoseRefinement& r) {
 
 }  // namespace
 
-void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static) {
+void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
   sub->add_option("--capture", flags.capture, "capture .pcap, or a `lidartwin record` output directory")->required();
   sub->add_option("--metadata", flags.metadata, "the capture's sensor metadata JSON (FW 2.x/3.x)");
   auto* scene = sub->add_option("--scene", flags.scene, "glTF scene (.glb/.gltf) of the measured place")
@@ -134,14 +169,19 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static)
   auto* refine = sub->add_flag("--refine-pose", flags.refine_pose,
                                "register the measured points to the scene (point-to-plane) and correct the poses "
                                "first; the correction is printed and in report.json");
-  if (!with_static) return;
-  sub->add_flag("--static", flags.static_mode,
-                "no scene: a motionless sensor's repeated frames, each pixel's temporal spread and detection against "
-                "the profile's prediction at its measured range")
+  auto* still = sub->add_flag("--static", flags.static_mode,
+                              "no scene: a motionless sensor's repeated frames (2 or more), each pixel's temporal "
+                              "spread and detection against the profile's prediction at its measured range")
+                    ->excludes(scene)
+                    ->excludes(pose)
+                    ->excludes(offset)
+                    ->excludes(refine);
+  sub->add_flag("--map", flags.map_mode,
+                "no scene: each return against a surface fitted to the other frames' points; the frames are "
+                "registered to each other (point to plane), or placed by --pose")
       ->excludes(scene)
-      ->excludes(pose)
-      ->excludes(offset)
-      ->excludes(refine);
+      ->excludes(refine)
+      ->excludes(still);
 }
 
 Steps::Steps() : tty_(isatty(STDERR_FILENO) != 0) {}
@@ -174,6 +214,8 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   steps.done();
   if (flags.static_mode) {
     out.table = build_static_table({out.capture, chain, profile.max_range_m});
+  } else if (flags.map_mode) {
+    map_table(flags, in, out, chain, profile, steps);
   } else {
     SceneComparison compared = scene_table(flags, in, out.capture, chain, profile, steps);
     out.table = std::move(compared.table);
@@ -185,6 +227,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
                 {"scene", flags.scene},
                 {"pose", in.pose.string()},
                 {"static", flags.static_mode},
+                {"map", flags.map_mode},
                 {"profile", profile.name},
                 {"time_offset_s", flags.time_offset_s},
                 {"frames", out.capture.frames.size()},
@@ -192,6 +235,22 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
                 {"lidar_mode", to_string(LidarMode{format.columns_per_frame, format.fps})},
                 {"udp_profile_lidar", to_string(format.udp_profile_lidar)}};
   if (out.refinement) out.inputs["pose_refinement"] = refinement_json(*out.refinement);
+  if (out.registration) {
+    const FrameRegistration& r = *out.registration;
+    out.inputs["registration"] = {
+        {"iterations", r.iterations}, {"pairs", r.pairs}, {"rms_m", r.rms_m}, {"path_length_m", r.path_length_m}};
+  }
+  if (out.map) {
+    const MapExclusions& x = *out.map;
+    out.inputs["map"] = {{"returns", x.returns},
+                         {"compared", x.compared},
+                         {"excluded",
+                          {{"edge", x.edge},
+                           {"unsupported", x.unsupported},
+                           {"not_surface", x.not_surface},
+                           {"off_surface", x.off_surface},
+                           {"grazing", x.grazing}}}};
+  }
   return out;
 }
 

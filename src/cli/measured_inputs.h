@@ -9,6 +9,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "lidartwin/analysis/frame_registration.h"
+#include "lidartwin/analysis/map_table.h"
 #include "lidartwin/analysis/measured_capture.h"
 #include "lidartwin/analysis/pixel_table.h"
 #include "lidartwin/analysis/pose_refinement.h"
@@ -27,12 +29,13 @@ struct MeasuredFlags {
   size_t skip_frames = 0;
   int threads = 0;
   bool static_mode = false;
+  bool map_mode = false;
   bool refine_pose = false;
 };
 
-// --capture, --metadata, --scene, --pose, --time-offset, --frames, --threads, --refine-pose, and
-// --static when `with_static`.
-void add_measured_options(CLI::App* sub, MeasuredFlags& flags, bool with_static);
+// --capture, --metadata, --scene, --pose, --time-offset, --frames, --skip-frames, --threads,
+// --refine-pose, --static and --map.
+void add_measured_options(CLI::App* sub, MeasuredFlags& flags);
 
 // One line per step on a terminal ("reading the capture ... 0.1 s"), a bar while casting.
 class Steps {
@@ -53,6 +56,8 @@ struct Measured {
   MeasuredCapture capture;
   PixelTable table;
   std::optional<PoseRefinement> refinement;
+  std::optional<FrameRegistration> registration;  // --map without --pose
+  std::optional<MapExclusions> map;               // --map: what was compared and what left out
   nlohmann::json inputs;
 };
 Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const EffectChain& chain, Steps& steps);

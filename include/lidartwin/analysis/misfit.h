@@ -86,10 +86,10 @@ struct Misfit {
 
 struct MisfitOptions {
   double alpha = 0.01;  // significance level after the correction
-  // Static mode (static_table.h): the ideal range is each pixel's own temporal mean, so bias is
-  // not tested, and the features that need a scene (incidence, material, retro, edge) are not binned.
-  bool static_mode = false;
 };
+// Without a scene (PixelTable::reference) the features that need its surfaces are not binned
+// (static mode: incidence, material, retro, edge; map mode: material, retro, edge), a temporal
+// mean's bias is not tested (it is the data's own), nor map mode's detection (returns only).
 Misfit find_misfit(const PixelTable& table, const PixelScores& scores, size_t frames, const MisfitOptions& options);
 
 // "range 20-35 m, incidence 60-75°"

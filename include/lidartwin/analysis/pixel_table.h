@@ -64,6 +64,22 @@ struct PixelTable {
   std::vector<float> window_max_m;
   std::vector<float> step_m;  // width of the measured range bins
 
+  // Where the ideal range comes from. The scene gives it exactly. Without one it comes from the
+  // data (docs/compare-report.md, "References without a scene"): static mode's temporal mean of
+  // the pixel's own returns, or map mode's surface fitted to the other frames' points. A reference
+  // made of the sensor's own returns carries the sensor's own mean bias, so the chain's bias is
+  // left out of the prediction; its own error enters the spread (reference_scale and
+  // reference_variance_m2, per pixel) and map mode, which keeps only returns, does not judge
+  // detection (p_detect 1).
+  enum class Reference : uint8_t { kScene, kTemporalMean, kMap };
+  Reference reference = Reference::kScene;
+  // Per pixel, with a data reference: the residual's variance is the chain's times
+  // reference_scale plus reference_variance_m2. A temporal mean of n returns includes the return
+  // itself: scale 1 - 1/n, which is also the residual's share of the degrees of freedom. A map
+  // surface fitted to other frames adds its own error: scale 1, variance the surface's along the beam.
+  std::vector<float> reference_scale;
+  std::vector<float> reference_variance_m2;
+
   ColumnContext context;  // what every column's context shares (range step, wire limit, signal gain)
   double start_s = 0.0;   // time_s of the capture's first observed column (effects' drift clock)
 
@@ -78,6 +94,16 @@ struct PixelTable {
   // scene table then turns into distances), and the chain's prediction for it.
   void set_ideal(size_t i, const IdealReturn& ideal);
   void set_prediction(size_t i, const Prediction& prediction, const RangeModel& model);
+  // Pixel i's predicted distribution of the measured range under a chain's prediction for it,
+  // with the reference's rules applied (see Reference). Every prediction the analysis scores goes
+  // through here, the table's own and every refit's.
+  RangeModel model_for(size_t i, Prediction prediction) const;
+  // Predicts pixel i with the chain and stores it (model_for's model).
+  void predict(size_t i, const EffectChain& chain);
+  // The residual's share of the degrees of freedom (1 but for temporal means: 1 - 1/n).
+  double dof_share(size_t i) const {
+    return reference == Reference::kTemporalMean ? static_cast<double>(reference_scale[i]) : 1.0;
+  }
 };
 
 struct PixelTableSetup {

@@ -1,0 +1,364 @@
+// Map mode's pixel table: each return against a surface fitted to the other frames' points.
+#include "lidartwin/analysis/map_table.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <mutex>
+
+#include <fmt/format.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "analysis/capture_points.h"
+#include "lidartwin/analysis/pixel_likelihood.h"
+#include "lidartwin/error.h"
+#include "lidartwin/packet/lidar_packet.h"
+
+namespace lidartwin {
+namespace {
+
+using analysis_detail::BeamProjector;
+using analysis_detail::FramePoints;
+
+constexpr size_t kMinPoints = 12;
+constexpr size_t kQuadricPoints = 24;         // from this many points the surface may curve
+constexpr double kMinPatchM = 0.15;           // half-width of the patch at short range
+constexpr double kMaxCosGrazing = 0.0871557;  // cos 85 degrees
+
+enum class Verdict { kCompared, kEdge, kUnsupported, kNotSurface, kOffSurface, kGrazing };
+
+struct Reference {
+  float range_m = 0.0f;
+  float cos_incidence = 1.0f;
+  float variance_m2 = 0.0f;  // of the reference range along the beam
+};
+
+// A pixel beside a depth step in its own frame (the scene table's size of a step: 0.3 m or 5 %):
+// along its row, a neighbour's range differs by a step; along its column, the range bends by one
+// (the second difference: the ground seen at grazing incidence changes range fast from row to row
+// but evenly).
+bool beside_step(const FramePoints& f, int m, int r, int column_reach) {
+  const float range = f.range_m[f.index(m, r)];
+  const auto step = [](float a, float b) { return std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b)); };
+  for (int dm = -column_reach; dm <= column_reach; ++dm) {
+    if (dm == 0) continue;
+    const float other = f.range_m[f.index((m + dm + f.width) % f.width, r)];
+    if (other > 0.0f && step(other, range)) return true;
+  }
+  if (r > 0 && r + 1 < f.height) {
+    const float up = f.range_m[f.index(m, r - 1)], down = f.range_m[f.index(m, r + 1)];
+    if (up > 0.0f && down > 0.0f && step(0.5f * (up + down), range)) return true;
+  }
+  return false;
+}
+
+// The surface through points, in the frame of their principal axes: w = c . basis(u, v), a plane
+// or, with enough points, a quadric (curved tanks and pipes are no planes at a patch's scale).
+struct Surface {
+  Eigen::Vector3d centre, e_u, e_v, e_w;
+  int terms = 3;
+  Eigen::Matrix<double, 6, 1> c = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 6> inverse = Eigen::Matrix<double, 6, 6>::Zero();  // (Phi^T Phi)^-1
+  double residual_variance = 0.0;
+  static Eigen::Matrix<double, 6, 1> basis(double u, double v) {
+    Eigen::Matrix<double, 6, 1> b;
+    b << 1.0, u, v, u * u, u * v, v * v;
+    return b;
+  }
+  double height(double u, double v) const {
+    const Eigen::Matrix<double, 6, 1> b = basis(u, v);
+    double sum = 0.0;
+    for (int k = 0; k < terms; ++k) sum += c(k) * b(k);
+    return sum;
+  }
+  Eigen::Vector2d slope(double u, double v) const {
+    Eigen::Vector2d s(c(1), c(2));
+    if (terms == 6) s += Eigen::Vector2d(2.0 * c(3) * u + c(4) * v, c(4) * u + 2.0 * c(5) * v);
+    return s;
+  }
+  double leverage(double u, double v) const {
+    const Eigen::Matrix<double, 6, 1> b = basis(u, v);
+    double sum = 0.0;
+    for (int i = 0; i < terms; ++i) {
+      for (int j = 0; j < terms; ++j) sum += b(i) * inverse(i, j) * b(j);
+    }
+    return sum;
+  }
+};
+
+class MapReferences {
+ public:
+  MapReferences(const std::vector<FramePoints>& frames, const BeamProjector& projector, int neighbour_frames)
+      : frames_(frames), projector_(projector), neighbour_frames_(neighbour_frames) {
+    column_reach_ =
+        std::max(1, static_cast<int>(std::lround(projector.row_spacing_rad() / projector.column_spacing_rad())));
+  }
+
+  Verdict reference(size_t k, int m, int r, Reference& out, std::vector<Eigen::Vector3d>& points) const {
+    const FramePoints& own = frames_[k];
+    if (beside_step(own, m, r, column_reach_)) return Verdict::kEdge;
+    const size_t i = own.index(m, r);
+    const Eigen::Vector3f x = own.world[i];
+    const double range = static_cast<double>(own.range_m[i]);
+    const double spacing = std::max(projector_.row_spacing_rad(), projector_.column_spacing_rad());
+    const double half = std::max(kMinPatchM, 1.5 * range * spacing);
+    const int rows = std::clamp(static_cast<int>(std::ceil(half / (range * projector_.row_spacing_rad()))), 1, 6);
+    const int columns =
+        std::clamp(static_cast<int>(std::ceil(half / (range * projector_.column_spacing_rad()))), 1, 12);
+    const auto radius2 = static_cast<float>(2.25 * half * half);
+    points.clear();
+    size_t frames_used = 0;
+    const size_t first = k >= static_cast<size_t>(neighbour_frames_) ? k - static_cast<size_t>(neighbour_frames_) : 0;
+    const size_t last = std::min(frames_.size() - 1, k + static_cast<size_t>(neighbour_frames_));
+    for (size_t j = first; j <= last; ++j) {
+      if (j == k) continue;
+      const FramePoints& other = frames_[j];
+      const BeamProjector::Pixel seed = projector_.project_world(other, x);
+      const size_t before = points.size();
+      for (int dm = -columns; dm <= columns; ++dm) {
+        const int mm = (seed.m + dm + other.width) % other.width;
+        for (int dr = -rows; dr <= rows; ++dr) {
+          const int rr = seed.r + dr;
+          if (rr < 0 || rr >= other.height) continue;
+          const size_t t = other.index(mm, rr);
+          if (!other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
+          points.push_back(other.world[t].cast<double>());
+        }
+      }
+      frames_used += points.size() > before;
+    }
+    if (points.size() < kMinPoints || frames_used < 2) return Verdict::kUnsupported;
+    Surface s;
+    if (!fit(points, s)) return Verdict::kNotSurface;
+    // The beam, in the surface's frame, and where it meets the surface (Newton from the plane).
+    const Eigen::Vector3d origin =
+        (own.rotation[static_cast<size_t>(m)] * projector_.origin(m, r) + own.translation[static_cast<size_t>(m)])
+            .cast<double>();
+    const Eigen::Vector3d direction =
+        (own.rotation[static_cast<size_t>(m)] * projector_.direction(m, r)).cast<double>();
+    const Eigen::Vector3d o(s.e_u.dot(origin - s.centre), s.e_v.dot(origin - s.centre), s.e_w.dot(origin - s.centre));
+    const Eigen::Vector3d d(s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction));
+    if (std::abs(d.z()) < kMaxCosGrazing) return Verdict::kGrazing;
+    double t = range;
+    for (int step = 0; step < 4; ++step) {
+      const double u = o.x() + t * d.x(), v = o.y() + t * d.y();
+      const Eigen::Vector2d slope = s.slope(u, v);
+      const double gap = o.z() + t * d.z() - s.height(u, v);
+      const double derivative = d.z() - slope.x() * d.x() - slope.y() * d.y();
+      if (std::abs(derivative) < 1e-6) return Verdict::kGrazing;
+      t -= gap / derivative;
+    }
+    const double u = o.x() + t * d.x(), v = o.y() + t * d.y();
+    const Eigen::Vector2d slope = s.slope(u, v);
+    const Eigen::Vector3d normal = Eigen::Vector3d(-slope.x(), -slope.y(), 1.0).normalized();
+    const double cos_incidence = std::abs(normal.dot(d));
+    if (cos_incidence < kMaxCosGrazing) return Verdict::kGrazing;
+    if (!(t > 0.0) || std::abs(t - range) > std::max(1.0, 0.1 * range)) return Verdict::kOffSurface;
+    out.range_m = static_cast<float>(t);
+    out.cos_incidence = static_cast<float>(cos_incidence);
+    // The surface's error at the crossing, along its normal, becomes a range error divided by
+    // cos(incidence) along the beam.
+    out.variance_m2 = static_cast<float>(s.residual_variance * s.leverage(u, v) / (cos_incidence * cos_incidence));
+    return Verdict::kCompared;
+  }
+
+ private:
+  static bool fit(const std::vector<Eigen::Vector3d>& points, Surface& s) {
+    const auto n = static_cast<double>(points.size());
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& p : points) mean += p;
+    mean /= n;
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    for (const auto& p : points) covariance += (p - mean) * (p - mean).transpose();
+    covariance /= n;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
+    const Eigen::Vector3d values = eigen.eigenvalues();                    // ascending
+    if (!(values(1) > 0.0) || values(1) < 0.05 * values(2)) return false;  // a line of points, not a patch
+    s.centre = mean;
+    s.e_w = eigen.eigenvectors().col(0);
+    s.e_u = eigen.eigenvectors().col(2);
+    s.e_v = s.e_w.cross(s.e_u);
+    s.terms = points.size() >= kQuadricPoints ? 6 : 3;
+    Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+    std::vector<Eigen::Vector3d> local;
+    local.reserve(points.size());
+    for (const auto& p : points) {
+      const Eigen::Vector3d q = p - mean;
+      local.emplace_back(s.e_u.dot(q), s.e_v.dot(q), s.e_w.dot(q));
+      const Eigen::Matrix<double, 6, 1> b = Surface::basis(local.back().x(), local.back().y());
+      normal += b * b.transpose();
+      rhs += b * local.back().z();
+    }
+    const auto p = static_cast<Eigen::Index>(s.terms);
+    const Eigen::MatrixXd a = normal.topLeftCorner(p, p);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(a);
+    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return false;
+    s.c.head(p) = ldlt.solve(rhs.head(p));
+    s.inverse.topLeftCorner(p, p) = ldlt.solve(Eigen::MatrixXd::Identity(p, p));
+    double rss = 0.0;
+    for (const auto& q : local) {
+      const double e = q.z() - s.height(q.x(), q.y());
+      rss += e * e;
+    }
+    s.residual_variance = rss / (n - static_cast<double>(s.terms));
+    // One surface at the patch's scale: its roughness well below its extent, and no second surface
+    // among its points (a pipe before a wall): under 5 % of them 4 robust deviations off it.
+    std::vector<double> deviations;
+    for (const auto& q : local) deviations.push_back(std::abs(q.z() - s.height(q.x(), q.y())));
+    std::vector<double> sorted = deviations;
+    const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+    std::nth_element(sorted.begin(), mid, sorted.end());
+    const double robust = 1.4826 * *mid;
+    const auto far = std::count_if(deviations.begin(), deviations.end(), [&](double d) { return d > 4.0 * robust; });
+    return s.residual_variance < values(1) / 9.0 && static_cast<double>(far) < 0.05 * n;
+  }
+
+  const std::vector<FramePoints>& frames_;
+  const BeamProjector& projector_;
+  int neighbour_frames_;
+  int column_reach_ = 1;
+};
+
+struct Kept {
+  uint16_t m = 0, r = 0;
+  Reference reference;
+};
+
+}  // namespace
+
+MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
+  const MeasuredCapture& capture = setup.capture;
+  const Metadata& metadata = capture.metadata;
+  const LidarDataFormat& format = metadata.format;
+  if (capture.frames.size() < 2) {
+    throw InputError(fmt::format("--map: the capture has {} frame{}; a reference from other frames needs at least 2",
+                                 capture.frames.size(), capture.frames.size() == 1 ? "" : "s"));
+  }
+  std::vector<FramePoints> frames = analysis_detail::capture_points(capture);
+  const PoseSpan span = setup.poses.span();
+  for (size_t k = 0; k < frames.size(); ++k) {
+    for (const double t : {frames[k].start_s, frames[k].end_s}) {
+      if (std::isfinite(t) && !span.contains(t + setup.time_offset_s)) {
+        throw InputError(fmt::format(
+            "--pose: frame {} was measured at {:.6f} s (capture clock), outside the poses' span [{:.6f}, {:.6f}] s", k,
+            t, span.begin_s, span.end_s));
+      }
+    }
+    analysis_detail::place(frames[k], setup.poses, setup.time_offset_s);
+  }
+  const BeamProjector projector(metadata);
+  const MapReferences references(frames, projector, setup.neighbour_frames);
+  const PacketFormat packets(format);
+  const double wire_max_m = packets.channel_max(ChannelField::kRange) / 1000.0;
+  const double reach = std::min(setup.max_range_m + 1.0, wire_max_m);
+
+  // Frame by frame (any thread), then gathered in frame order: the table does not depend on threads.
+  std::vector<std::vector<Kept>> kept(frames.size());
+  std::vector<MapExclusions> counts(frames.size());
+  std::atomic<int> done{0};
+  std::mutex progress_mutex;
+  pool.run(static_cast<int>(frames.size()), [&](int, int item) {
+    const auto k = static_cast<size_t>(item);
+    const FramePoints& f = frames[k];
+    MapExclusions& c = counts[k];
+    std::vector<Eigen::Vector3d> points;
+    for (int m = 0; m < f.width; ++m) {
+      for (int r = 0; r < f.height; ++r) {
+        const size_t i = f.index(m, r);
+        if (!f.returned(i) || static_cast<double>(f.range_m[i]) > setup.max_range_m) continue;
+        ++c.returns;
+        Reference ref;
+        switch (references.reference(k, m, r, ref, points)) {
+          case Verdict::kCompared:
+            ++c.compared;
+            kept[k].push_back({static_cast<uint16_t>(m), static_cast<uint16_t>(r), ref});
+            break;
+          case Verdict::kEdge: ++c.edge; break;
+          case Verdict::kUnsupported: ++c.unsupported; break;
+          case Verdict::kNotSurface: ++c.not_surface; break;
+          case Verdict::kOffSurface: ++c.off_surface; break;
+          case Verdict::kGrazing: ++c.grazing; break;
+        }
+      }
+    }
+    const int now = ++done;
+    if (setup.progress) {
+      const std::lock_guard lock(progress_mutex);
+      setup.progress(static_cast<double>(now) / static_cast<double>(frames.size()));
+    }
+  });
+  MapTable out;
+  size_t total = 0;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const MapExclusions& c = counts[k];
+    out.excluded.returns += c.returns;
+    out.excluded.compared += c.compared;
+    out.excluded.edge += c.edge;
+    out.excluded.unsupported += c.unsupported;
+    out.excluded.not_surface += c.not_surface;
+    out.excluded.off_surface += c.off_surface;
+    out.excluded.grazing += c.grazing;
+    total += kept[k].size();
+  }
+  if (total == 0) {
+    throw InputError(fmt::format(
+        "--map: no return of the {} could be compared: none lies on a smooth surface that other frames saw ({} "
+        "beside depth steps, {} with too few points of other frames around them, {} on no smooth surface, {} far "
+        "from it); is the trajectory right?",
+        out.excluded.returns, out.excluded.edge, out.excluded.unsupported, out.excluded.not_surface,
+        out.excluded.off_surface));
+  }
+
+  PixelTable& t = out.table;
+  t.reference = PixelTable::Reference::kMap;
+  t.resize(total);
+  t.context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
+  t.context.max_wire_range_m = static_cast<float>(wire_max_m);
+  t.context.signal_gain = analysis_detail::signal_gain_of(metadata);
+  t.context.columns_per_frame = static_cast<uint32_t>(format.columns_per_frame);
+  double first = std::numeric_limits<double>::infinity();
+  for (const FramePoints& f : frames) first = std::min(first, f.start_s);
+  t.start_s = capture.start_ns != 0 ? std::min(first, static_cast<double>(capture.start_ns) * 1e-9) : first;
+  const bool has_reflectivity = packets.has_channel(ChannelField::kReflectivity);
+  std::vector<size_t> offsets(frames.size() + 1, 0);
+  for (size_t k = 0; k < frames.size(); ++k) offsets[k + 1] = offsets[k] + kept[k].size();
+  pool.run(static_cast<int>(frames.size()), [&](int, int item) {
+    const auto k = static_cast<size_t>(item);
+    const Scan& scan = capture.frames[k].scan;
+    for (size_t n = 0; n < kept[k].size(); ++n) {
+      const Kept& pixel = kept[k][n];
+      const size_t p = offsets[k] + n;
+      t.set_measured(p, static_cast<uint32_t>(k), scan, pixel.m, pixel.r);
+      IdealReturn ideal;
+      ideal.range_m = pixel.reference.range_m;
+      ideal.cos_incidence = pixel.reference.cos_incidence;
+      // REFLECTIVITY is the apparent reflectivity rho cos(theta) in percent for Lambertian targets
+      // (lidar-physics.md 2.1); the material's own is what the radiometry takes.
+      ideal.reflectivity =
+          has_reflectivity ? std::clamp(t.reflectivity[p] / 100.0f / std::max(ideal.cos_incidence, 0.1f), 0.01f, 1.0f)
+                           : 0.5f;
+      ideal.beam = pixel.r;
+      t.set_ideal(p, ideal);
+      t.material[p] = 0xFFFF;  // no scene: no material, no retroreflectors; edges were left out
+      t.edge[p] = t.retro[p] = PixelTable::kFarPixels;
+      t.reference_scale[p] = 1.0f;
+      t.reference_variance_m2[p] = pixel.reference.variance_m2;
+      t.step_m[p] = t.context.range_step_m;
+      t.window_max_m[p] = static_cast<float>(reach);
+      t.predict(p, setup.chain);
+    }
+  });
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.predicted_sigma_m[i] <= 0.0f) {
+      throw InputError(
+          "--profile: its effect chain predicts no range spread (variance 0), so map mode has nothing to compare "
+          "the measured spread with");
+    }
+  }
+  return out;
+}
+
+}  // namespace lidartwin

@@ -1,0 +1,199 @@
+// `lidartwin compare` without a scene, as a user with a real sensor runs it: --static from two
+// frames of a motionless sensor, and --map for a moving one, whose frames are placed by a given
+// trajectory or registered to each other. Judged against what the scene-based comparison of the
+// same capture says, and against a profile that is wrong.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "support/table_profile.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kSource = LIDARTWIN_SOURCE_DIR;
+
+std::string os1_64() {
+  static const std::string path = table_profiles::table_profile("os1-64").string();
+  return path;
+}
+
+struct CliRun {
+  int code = -1;
+  std::string out;
+};
+
+CliRun lidartwin(const std::string& arguments) {
+  CliRun run;
+  FILE* pipe = popen((std::string(LIDARTWIN_BINARY) + " " + arguments + " 2>&1").c_str(), "r");
+  char buffer[4096];
+  while (size_t n = fread(buffer, 1, sizeof buffer, pipe)) run.out.append(buffer, n);
+  const int status = pclose(pipe);
+  run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+fs::path temp(const std::string& name) {
+  const fs::path dir = fs::path(testing::TempDir()) / (name + "_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  return dir;
+}
+
+// The single-feature bins of `feature` with at least `min_inliers` inliers.
+std::vector<nlohmann::json> bins_of(const nlohmann::json& report, const std::string& feature, size_t min_inliers) {
+  std::vector<nlohmann::json> out;
+  for (const auto& bin : report["bins"]) {
+    if (bin["features"].size() == 1 && bin["features"].contains(feature) &&
+        bin["inliers"].get<size_t>() >= min_inliers) {
+      out.push_back(bin);
+    }
+  }
+  return out;
+}
+
+TEST(CompareStatic, TwoFramesOfAMotionlessSensorJudgeItsSpread) {
+  const fs::path capture = temp("static_two_frames");
+  ASSERT_EQ(lidartwin("record --profile " + os1_64() + " --scene " + kSource + "/scenes/calibration_hall.glb" +
+                      " --trajectory " + kSource + "/scenes/calibration_hall_static.tum --frames 2 --seed 3 --out " +
+                      capture.string())
+                .code,
+            0);
+  const fs::path same = temp("static_two_frames_same");
+  const CliRun r = lidartwin("compare --static --capture " + capture.string() + " --profile " + os1_64() + " --out " +
+                             same.string() + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json report = read_json(same / "report.json");
+  EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];
+  const auto ranges = bins_of(report, "range", 2000);
+  ASSERT_GE(ranges.size(), 2u);
+  for (const auto& bin : ranges) EXPECT_NEAR(bin["spread_ratio"].get<double>(), 1.0, 0.05) << bin.dump();
+
+  // The paper's linear law is 1.5-2 times the datasheet's sigma over the hall's ranges.
+  const fs::path paper = temp("static_two_frames_paper");
+  ASSERT_EQ(lidartwin("compare --static --capture " + capture.string() + " --profile os1-32-paper --out " +
+                      paper.string() + " --no-plots")
+                .code,
+            0);
+  const nlohmann::json wrong = read_json(paper / "report.json");
+  ASSERT_FALSE(wrong["failing"].empty());
+  EXPECT_EQ(wrong["failing"][0]["quantity"], "spread");
+  fs::remove_all(capture);
+  fs::remove_all(same);
+  fs::remove_all(paper);
+}
+
+TEST(CompareStatic, OneFrameIsRefusedAndSaysWhatItNeeds) {
+  const std::string dir = kSource + "/tests/data/ouster-samples/";
+  const fs::path out = temp("static_one_frame");
+  const CliRun r =
+      lidartwin("compare --static --frames 1 --capture " + dir + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap" + " --metadata " +
+                dir + "OS-1-128_v2.3.0_1024x10.json --profile os1-128 --out " + out.string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("needs at least 2"), std::string::npos) << r.out;
+}
+
+// A drive through the plant, 2.5 m/s and 10 deg/s, 1.7 m above the ground.
+class CompareMap : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    drive_ = temp("map_drive");
+    fs::create_directories(drive_);
+    std::ofstream(drive_ / "drive.tum") << "0 10 9 1.7 0 0 0 1\n3 17.5 9 1.7 0 0 0.0871557 0.9961947\n";
+    const CliRun r = lidartwin("record --profile " + os1_64() + " --scene " + kSource + "/scenes/plant.glb" +
+                               " --trajectory " + (drive_ / "drive.tum").string() +
+                               " --uptime-s 0 --frames 12 --seed 5 --out " + (drive_ / "capture").string());
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  static void TearDownTestSuite() { fs::remove_all(drive_); }
+  static std::string capture_args() {
+    return " --capture " + (drive_ / "capture" / "capture.pcap").string() + " --metadata " +
+           (drive_ / "capture" / "metadata.json").string();
+  }
+  static inline fs::path drive_;
+};
+
+TEST_F(CompareMap, WithTheTrajectoryTheSpreadIsJudgedAsWithTheScene) {
+  const fs::path out = drive_ / "map_truth";
+  const CliRun r =
+      lidartwin("compare --map" + capture_args() + " --pose " + (drive_ / "capture" / "poses.tum").string() +
+                " --profile " + os1_64() + " --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("returns compared"), std::string::npos) << r.out;
+  const nlohmann::json report = read_json(out / "report.json");
+  const auto& map = report["inputs"]["map"];
+  EXPECT_GT(map["compared"].get<size_t>(), 50000u);
+  EXPECT_EQ(map["compared"].get<size_t>(), report["summary"]["pixels"].get<size_t>());
+  // Overall the residuals about the other frames' surfaces spread as the profile says, within
+  // what the reference's unmodelled error still adds (map mode's known limit, up to 1.2 times in a
+  // range band: docs/compare-report.md); the paper's law below is off by 1.5-2 times.
+  EXPECT_NEAR(report["summary"]["z"]["std"].get<double>(), 1.0, 0.1);
+  size_t checked = 0;
+  for (const auto& bin : bins_of(report, "range", 5000)) {
+    EXPECT_NEAR(bin["spread_ratio"].get<double>(), 1.05, 0.2) << bin.dump();
+    ++checked;
+  }
+  EXPECT_GE(checked, 2u);
+  for (const auto& bin : report["bins"]) EXPECT_FALSE(bin["features"].contains("material"));
+
+  // Against the paper's law (sigma 1.5-2 times the datasheet's) the spread fails, first.
+  const fs::path paper = drive_ / "map_paper";
+  ASSERT_EQ(lidartwin("compare --map" + capture_args() + " --pose " + (drive_ / "capture" / "poses.tum").string() +
+                      " --profile os1-32-paper --out " + paper.string() + " --no-plots")
+                .code,
+            0);
+  const nlohmann::json wrong = read_json(paper / "report.json");
+  ASSERT_FALSE(wrong["failing"].empty());
+  size_t spread_low = 0;
+  for (const auto& bin : bins_of(wrong, "range", 5000)) spread_low += bin["spread_ratio"].get<double>() < 0.8;
+  EXPECT_GE(spread_low, 2u);
+}
+
+TEST_F(CompareMap, WithoutATrajectoryTheFramesAreRegisteredToEachOther) {
+  const fs::path out = drive_ / "map_registered";
+  const CliRun r =
+      lidartwin("compare --map" + capture_args() + " --profile " + os1_64() + " --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("frames registered to each other"), std::string::npos) << r.out;
+  const nlohmann::json report = read_json(out / "report.json");
+  // 12 frames at 2.5 m/s: 3 m.
+  EXPECT_NEAR(report["inputs"]["registration"]["path_length_m"].get<double>(), 3.0, 0.3);
+  std::ifstream tum(out / "registered_poses.tum");
+  std::string line, last;
+  size_t rows = 0;
+  while (std::getline(tum, line)) {
+    if (!line.empty() && line[0] != '#') {
+      last = line;
+      ++rows;
+    }
+  }
+  EXPECT_EQ(rows, 13u);  // a knot at each frame's start and where the last one ends
+  double t = 0, x = 0, y = 0, z = 0;
+  ASSERT_EQ(std::sscanf(last.c_str(), "%lf %lf %lf %lf", &t, &x, &y, &z), 4);
+  // The truth, in the first frame's sensor frame: 3 m straight ahead (yawing as it goes) on level ground.
+  EXPECT_NEAR(x, 3.0, 0.2);
+  EXPECT_NEAR(y, 0.0, 0.2);
+  EXPECT_NEAR(z, 0.0, 0.05);
+  EXPECT_GT(report["inputs"]["map"]["compared"].get<size_t>(), 30000u);
+}
+
+TEST_F(CompareMap, MapModeNeedsTwoFrames) {
+  const CliRun r = lidartwin("compare --map --frames 1" + capture_args() + " --profile " + os1_64() + " --out " +
+                             (drive_ / "map_one").string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.out.find("at least 2"), std::string::npos) << r.out;
+}
+
+}  // namespace
