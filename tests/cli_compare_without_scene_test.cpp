@@ -137,12 +137,12 @@ TEST_F(CompareMap, WithTheTrajectoryTheSpreadIsJudgedAsWithTheScene) {
   EXPECT_GT(map["compared"].get<size_t>(), 50000u);
   EXPECT_EQ(map["compared"].get<size_t>(), report["summary"]["pixels"].get<size_t>());
   // Overall the residuals about the other frames' surfaces spread as the profile says, within
-  // what the reference's unmodelled error still adds (map mode's known limit, up to 1.2 times in a
-  // range band: docs/compare-report.md); the paper's law below is off by 1.5-2 times.
-  EXPECT_NEAR(report["summary"]["z"]["std"].get<double>(), 1.0, 0.1);
+  // what the reference's unmodelled error still adds (map mode's known limit: up to 1.1 times in
+  // the 13-20 m band here, docs/compare-report.md); the paper's law below is off by 1.5-2 times.
+  EXPECT_NEAR(report["summary"]["z"]["std"].get<double>(), 1.0, 0.05);
   size_t checked = 0;
   for (const auto& bin : bins_of(report, "range", 5000)) {
-    EXPECT_NEAR(bin["spread_ratio"].get<double>(), 1.05, 0.2) << bin.dump();
+    EXPECT_NEAR(bin["spread_ratio"].get<double>(), 1.0, 0.12) << bin.dump();
     ++checked;
   }
   EXPECT_GE(checked, 2u);

@@ -111,6 +111,10 @@ BeamProjector::BeamProjector(const Metadata& metadata)
               ? angle_difference(std::atan2(static_cast<double>(d1.y()), static_cast<double>(d1.x())), azimuth0_[0])
               : kTwoPi;
   column_spacing_ = std::abs(step_);
+  for (int r = 0; r < height_; ++r) {
+    shift_.push_back(
+        static_cast<int>(std::lround(angle_difference(azimuth0_[static_cast<size_t>(r)], azimuth0_[0]) / step_)));
+  }
   rows_by_elevation_.resize(static_cast<size_t>(height_));
   for (int r = 0; r < height_; ++r) rows_by_elevation_[static_cast<size_t>(r)] = r;
   std::sort(rows_by_elevation_.begin(), rows_by_elevation_.end(),

@@ -6,6 +6,7 @@
 // frames are found through the frames' own grids, at any range, without a search structure.
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -59,6 +60,16 @@ class BeamProjector {
   Pixel project(const Eigen::Vector3f& sensor_point) const;
   // A world point's pixel in a placed frame, through the pose of the column it lands in.
   Pixel project_world(const FramePoints& frame, const Eigen::Vector3f& world_point) const;
+  // The pixel dr rows and dm columns from (m, r) in azimuth, not in measurement id: rows look at
+  // their own azimuth offsets (an OS1-128's consecutive rows up to 8.4 degrees apart, protocol doc
+  // 3.4), so the same measurement id of the next row is not the pixel beside. None past the rows.
+  std::optional<Pixel> beside(int m, int r, int dm, int dr) const {
+    const int rr = r + dr;
+    if (rr < 0 || rr >= height_) return std::nullopt;
+    int mm = (m + shift_[static_cast<size_t>(r)] - shift_[static_cast<size_t>(rr)] + dm) % width_;
+    if (mm < 0) mm += width_;
+    return Pixel{mm, rr};
+  }
   // Angular spacing of neighbouring rows (mean) and columns, radians.
   double row_spacing_rad() const { return row_spacing_; }
   double column_spacing_rad() const { return column_spacing_; }
@@ -78,6 +89,7 @@ class BeamProjector {
   std::vector<double> sorted_elevation_;
   std::vector<double> azimuth0_;  // [row] the direction's azimuth at measurement id 0
   double step_ = 0.0;             // azimuth change per measurement id (signed)
+  std::vector<int> shift_;        // [row] its azimuth offset in measurement ids (beside())
   double row_spacing_ = 0.0, column_spacing_ = 0.0;
 };
 

@@ -30,7 +30,8 @@ constexpr double kMinScale = 0.05;
 // edge, a pole, scatter) or are too few.
 class Normals {
  public:
-  Normals(const FramePoints& frame, int column_reach) : frame_(frame), reach_(column_reach) {
+  Normals(const FramePoints& frame, const BeamProjector& projector, int column_reach)
+      : frame_(frame), projector_(projector), reach_(column_reach) {
     cache_.assign(frame.sensor.size(), std::nullopt);
     known_.assign(frame.sensor.size(), 0);
   }
@@ -45,11 +46,10 @@ class Normals {
     Eigen::Matrix3f outer = Eigen::Matrix3f::Zero();
     int n = 0;
     for (int dm = -reach_; dm <= reach_; ++dm) {
-      const int mm = (m + dm + frame_.width) % frame_.width;
       for (int dr = -2; dr <= 2; ++dr) {
-        const int rr = r + dr;
-        if (rr < 0 || rr >= frame_.height) continue;
-        const size_t j = frame_.index(mm, rr);
+        const std::optional<BeamProjector::Pixel> near = projector_.beside(m, r, dm, dr);
+        if (!near) continue;
+        const size_t j = frame_.index(near->m, near->r);
         if (!frame_.returned(j)) continue;
         const Eigen::Vector3f d = frame_.sensor[j] - centre;
         if (d.squaredNorm() > radius * radius) continue;
@@ -73,6 +73,7 @@ class Normals {
 
  private:
   const FramePoints& frame_;
+  const BeamProjector& projector_;
   int reach_;
   std::vector<std::optional<Eigen::Vector3f>> cache_;
   std::vector<uint8_t> known_;
@@ -148,7 +149,7 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
   std::vector<Normals> normals;
   std::vector<std::vector<size_t>> samples;
   for (const FramePoints& f : frames) {
-    normals.emplace_back(f, 2 * column_reach);
+    normals.emplace_back(f, projector, 2 * column_reach);
     samples.push_back(sample_pixels(f, options));
   }
   size_t returns = 0;
@@ -188,11 +189,10 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
           float best = gap * gap;
           size_t best_i = std::numeric_limits<size_t>::max();
           for (int dm = -2 * column_reach; dm <= 2 * column_reach; ++dm) {
-            const int mm = (seed.m + dm + target.width) % target.width;
             for (int dr = -2; dr <= 2; ++dr) {
-              const int rr = seed.r + dr;
-              if (rr < 0 || rr >= target.height) continue;
-              const size_t t = target.index(mm, rr);
+              const std::optional<BeamProjector::Pixel> near = projector.beside(seed.m, seed.r, dm, dr);
+              if (!near) continue;
+              const size_t t = target.index(near->m, near->r);
               if (!target.returned(t)) continue;
               const float d2 = (target.world[t] - x).squaredNorm();
               if (d2 < best) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <optional>
 
 #include <fmt/format.h>
 #include <Eigen/Cholesky>
@@ -23,9 +24,10 @@ using analysis_detail::BeamProjector;
 using analysis_detail::FramePoints;
 
 constexpr size_t kMinPoints = 12;
-constexpr size_t kQuadricPoints = 24;         // from this many points the surface may curve
-constexpr double kMinPatchM = 0.15;           // half-width of the patch at short range
-constexpr double kMaxCosGrazing = 0.0871557;  // cos 85 degrees
+constexpr size_t kQuadricPoints = 24;              // from this many points the surface may curve
+constexpr double kMinPatchM = 0.15;                // half-width of the patch at short range
+constexpr double kMaxCosGrazing = 0.0871557;       // cos 85 degrees
+constexpr double kMinNormalAgreement = 0.9063078;  // cos 25 degrees
 
 enum class Verdict { kCompared, kEdge, kUnsupported, kNotSurface, kOffSurface, kGrazing };
 
@@ -35,23 +37,26 @@ struct Reference {
   float variance_m2 = 0.0f;  // of the reference range along the beam
 };
 
-// A pixel beside a depth step in its own frame (the scene table's size of a step: 0.3 m or 5 %):
+// A pixel beside a depth step in its own frame (0.15 m or 3 %, finer than the scene table's 0.3 m
+// or 5 %: a reference patch straddling a smaller step still mixes two surfaces):
 // along its row, a neighbour's range differs by a step; along its column, the range bends by one
 // (the second difference: the ground seen at grazing incidence changes range fast from row to row
 // but evenly).
-bool beside_step(const FramePoints& f, int m, int r, int column_reach) {
+bool beside_step(const FramePoints& f, const BeamProjector& projector, int m, int r, int column_reach) {
   const float range = f.range_m[f.index(m, r)];
-  const auto step = [](float a, float b) { return std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b)); };
+  const auto step = [](float a, float b) { return std::abs(a - b) > std::max(0.15f, 0.03f * std::max(a, b)); };
+  const auto range_at = [&](int dm, int dr) {
+    const std::optional<BeamProjector::Pixel> p = projector.beside(m, r, dm, dr);
+    return p ? f.range_m[f.index(p->m, p->r)] : 0.0f;
+  };
   for (int dm = -column_reach; dm <= column_reach; ++dm) {
     if (dm == 0) continue;
-    const float other = f.range_m[f.index((m + dm + f.width) % f.width, r)];
-    if (other > 0.0f && step(other, range)) return true;
+    const float other = range_at(dm, 0);
+    if (other == 0.0f || step(other, range)) return true;
   }
-  if (r > 0 && r + 1 < f.height) {
-    const float up = f.range_m[f.index(m, r - 1)], down = f.range_m[f.index(m, r + 1)];
-    if (up > 0.0f && down > 0.0f && step(0.5f * (up + down), range)) return true;
-  }
-  return false;
+  const float up = range_at(0, -1), down = range_at(0, 1);
+  if ((up == 0.0f) != (down == 0.0f)) return true;  // the rim of a surface against the sky
+  return up > 0.0f && down > 0.0f && step(0.5f * (up + down), range);
 }
 
 // The surface through points, in the frame of their principal axes: w = c . basis(u, v), a plane
@@ -98,7 +103,7 @@ class MapReferences {
 
   Verdict reference(size_t k, int m, int r, Reference& out, std::vector<Eigen::Vector3d>& points) const {
     const FramePoints& own = frames_[k];
-    if (beside_step(own, m, r, column_reach_)) return Verdict::kEdge;
+    if (beside_step(own, projector_, m, r, column_reach_)) return Verdict::kEdge;
     const size_t i = own.index(m, r);
     const Eigen::Vector3f x = own.world[i];
     const double range = static_cast<double>(own.range_m[i]);
@@ -118,11 +123,10 @@ class MapReferences {
       const BeamProjector::Pixel seed = projector_.project_world(other, x);
       const size_t before = points.size();
       for (int dm = -columns; dm <= columns; ++dm) {
-        const int mm = (seed.m + dm + other.width) % other.width;
         for (int dr = -rows; dr <= rows; ++dr) {
-          const int rr = seed.r + dr;
-          if (rr < 0 || rr >= other.height) continue;
-          const size_t t = other.index(mm, rr);
+          const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
+          if (!near) continue;
+          const size_t t = other.index(near->m, near->r);
           if (!other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
           points.push_back(other.world[t].cast<double>());
         }
@@ -153,6 +157,12 @@ class MapReferences {
     const double u = o.x() + t * d.x(), v = o.y() + t * d.y();
     const Eigen::Vector2d slope = s.slope(u, v);
     const Eigen::Vector3d normal = Eigen::Vector3d(-slope.x(), -slope.y(), 1.0).normalized();
+    // The pixel's own frame must see the same surface: a thin thing seen edge-on (a railing, a
+    // beam's flange) lies in front of the larger surface the other frames' points describe.
+    if (const std::optional<Eigen::Vector3d> own_normal = own_frame_normal(own, m, r, half)) {
+      const Eigen::Vector3d local(s.e_u.dot(*own_normal), s.e_v.dot(*own_normal), s.e_w.dot(*own_normal));
+      if (std::abs(local.dot(normal)) < kMinNormalAgreement) return Verdict::kNotSurface;
+    }
     const double cos_incidence = std::abs(normal.dot(d));
     if (cos_incidence < kMaxCosGrazing) return Verdict::kGrazing;
     if (!(t > 0.0) || std::abs(t - range) > std::max(1.0, 0.1 * range)) return Verdict::kOffSurface;
@@ -205,15 +215,48 @@ class MapReferences {
     }
     s.residual_variance = rss / (n - static_cast<double>(s.terms));
     // One surface at the patch's scale: its roughness well below its extent, and no second surface
-    // among its points (a pipe before a wall): under 5 % of them 4 robust deviations off it.
+    // among its points (a pipe before a wall, the floor beyond a box's edge): at most one of them 5
+    // robust deviations off it (a Gaussian puts one of 1.7 million there).
     std::vector<double> deviations;
     for (const auto& q : local) deviations.push_back(std::abs(q.z() - s.height(q.x(), q.y())));
     std::vector<double> sorted = deviations;
     const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
     std::nth_element(sorted.begin(), mid, sorted.end());
     const double robust = 1.4826 * *mid;
-    const auto far = std::count_if(deviations.begin(), deviations.end(), [&](double d) { return d > 4.0 * robust; });
-    return s.residual_variance < values(1) / 9.0 && static_cast<double>(far) < 0.05 * n;
+    const auto far = std::count_if(deviations.begin(), deviations.end(), [&](double d) { return d > 5.0 * robust; });
+    // A fold (a corner, an edge's two faces) is fitted by a quadric too, badly: the surface may
+    // bend over the patch by a fifth of its half-width at most (a radius of curvature of 2.5
+    // half-widths; a 3 m tank seen through a 0.15 m patch bends by a fortieth).
+    const double half = 2.0 * std::sqrt(values(2));
+    const double sag = (std::abs(s.c(3)) + 0.5 * std::abs(s.c(4)) + std::abs(s.c(5))) * half * half;
+    return s.residual_variance < values(1) / 9.0 && far < 2 && sag < 0.2 * half;
+  }
+
+  // The normal of the pixel's own frame's points within `half` of it (world frame), when they
+  // make a patch.
+  std::optional<Eigen::Vector3d> own_frame_normal(const FramePoints& f, int m, int r, double half) const {
+    const Eigen::Vector3f& centre = f.world[f.index(m, r)];
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+    int n = 0;
+    for (int dm = -2 * column_reach_; dm <= 2 * column_reach_; ++dm) {
+      for (int dr = -2; dr <= 2; ++dr) {
+        const std::optional<BeamProjector::Pixel> p = projector_.beside(m, r, dm, dr);
+        if (!p) continue;
+        const size_t j = f.index(p->m, p->r);
+        if (!f.returned(j) || static_cast<double>((f.world[j] - centre).norm()) > 1.5 * half) continue;
+        const Eigen::Vector3d d = (f.world[j] - centre).cast<double>();
+        sum += d;
+        outer += d * d.transpose();
+        ++n;
+      }
+    }
+    if (n < 8) return std::nullopt;
+    const Eigen::Vector3d mean = sum / n;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(outer / n - mean * mean.transpose());
+    const Eigen::Vector3d values = eigen.eigenvalues();
+    if (!(values(1) > 0.0) || values(1) < 0.05 * values(2) || values(0) > values(1) / 9.0) return std::nullopt;
+    return eigen.eigenvectors().col(0);
   }
 
   const std::vector<FramePoints>& frames_;
