@@ -28,55 +28,49 @@ constexpr double kMinScale = 0.05;
 // The unit normal of the surface around pixel i of a frame, in its sensor frame, from its
 // neighbours in the frame's grid (principal axes); none where they do not make a surface (an
 // edge, a pole, scatter) or are too few.
-class Normals {
- public:
-  Normals(const FramePoints& frame, const BeamProjector& projector, int column_reach)
-      : frame_(frame), projector_(projector), reach_(column_reach) {
-    cache_.assign(frame.sensor.size(), std::nullopt);
-    known_.assign(frame.sensor.size(), 0);
-  }
-  const std::optional<Eigen::Vector3f>& at(size_t i) {
-    if (known_[i]) return cache_[i];
-    known_[i] = 1;
-    const int m = static_cast<int>(i / static_cast<size_t>(frame_.height));
-    const int r = static_cast<int>(i % static_cast<size_t>(frame_.height));
-    const Eigen::Vector3f& centre = frame_.sensor[i];
-    const float radius = 0.05f + 0.08f * frame_.range_m[i];  // a few beam spacings at any range
-    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-    Eigen::Matrix3f outer = Eigen::Matrix3f::Zero();
-    int n = 0;
-    for (int dm = -reach_; dm <= reach_; ++dm) {
-      for (int dr = -2; dr <= 2; ++dr) {
-        const std::optional<BeamProjector::Pixel> near = projector_.beside(m, r, dm, dr);
-        if (!near) continue;
-        const size_t j = frame_.index(near->m, near->r);
-        if (!frame_.returned(j)) continue;
-        const Eigen::Vector3f d = frame_.sensor[j] - centre;
-        if (d.squaredNorm() > radius * radius) continue;
-        sum += d;
-        outer += d * d.transpose();
-        ++n;
-      }
+std::optional<Eigen::Vector3f> normal_at(const FramePoints& frame, const BeamProjector& projector, int reach,
+                                         size_t i) {
+  const int m = static_cast<int>(i / static_cast<size_t>(frame.height));
+  const int r = static_cast<int>(i % static_cast<size_t>(frame.height));
+  const Eigen::Vector3f& centre = frame.sensor[i];
+  const float radius = 0.05f + 0.08f * frame.range_m[i];  // a few beam spacings at any range
+  Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+  Eigen::Matrix3f outer = Eigen::Matrix3f::Zero();
+  int n = 0;
+  for (int dm = -reach; dm <= reach; ++dm) {
+    for (int dr = -2; dr <= 2; ++dr) {
+      const std::optional<BeamProjector::Pixel> near = projector.beside(m, r, dm, dr);
+      if (!near) continue;
+      const size_t j = frame.index(near->m, near->r);
+      if (!frame.returned(j)) continue;
+      const Eigen::Vector3f d = frame.sensor[j] - centre;
+      if (d.squaredNorm() > radius * radius) continue;
+      sum += d;
+      outer += d * d.transpose();
+      ++n;
     }
-    if (n < 6) return cache_[i];
-    const Eigen::Vector3f mean = sum / static_cast<float>(n);
-    const Eigen::Matrix3f covariance = outer / static_cast<float>(n) - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eigen;
-    eigen.computeDirect(covariance);
-    const Eigen::Vector3f values = eigen.eigenvalues();  // ascending
-    if (!(values(1) > 0.0f) || values(0) > 0.2f * values(1) || values(1) < 0.05f * values(2)) return cache_[i];
-    Eigen::Vector3f normal = eigen.eigenvectors().col(0).normalized();
-    if (normal.dot(centre) > 0.0f) normal = -normal;  // facing the sensor
-    cache_[i] = normal;
-    return cache_[i];
   }
+  if (n < 6) return std::nullopt;
+  const Eigen::Vector3f mean = sum / static_cast<float>(n);
+  const Eigen::Matrix3f covariance = outer / static_cast<float>(n) - mean * mean.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> eigen;
+  eigen.computeDirect(covariance);
+  const Eigen::Vector3f values = eigen.eigenvalues();  // ascending
+  if (!(values(1) > 0.0f) || values(0) > 0.2f * values(1) || values(1) < 0.05f * values(2)) return std::nullopt;
+  Eigen::Vector3f normal = eigen.eigenvectors().col(0).normalized();
+  if (normal.dot(centre) > 0.0f) normal = -normal;  // facing the sensor
+  return normal;
+}
 
- private:
-  const FramePoints& frame_;
-  const BeamProjector& projector_;
-  int reach_;
-  std::vector<std::optional<Eigen::Vector3f>> cache_;
-  std::vector<uint8_t> known_;
+// What one source frame adds to the normal equations: its residuals involve the knots k - 1 ..
+// k + 2 only (its own two and its neighbours' two), summed here and added to the whole system in
+// frame order, so the result does not depend on the threads.
+struct FrameSums {
+  static constexpr int kKnots = 4;
+  Eigen::Matrix<double, kKnots * kBlock, kKnots* kBlock> h = decltype(h)::Zero();
+  Eigen::Matrix<double, kKnots * kBlock, 1> g = decltype(g)::Zero();
+  std::vector<double> residuals;
+  double weighted2 = 0.0, weights = 0.0;
 };
 
 // Where column time t lies between the knots: knot k and the weight of knot k + 1.
@@ -121,7 +115,8 @@ double median_of(std::vector<double> v) {
 
 }  // namespace
 
-FrameRegistration register_frames(const MeasuredCapture& capture, const RegistrationOptions& options) {
+FrameRegistration register_frames(const MeasuredCapture& capture, WorkerPool& pool,
+                                  const RegistrationOptions& options) {
   std::vector<FramePoints> frames = analysis_detail::capture_points(capture);
   const size_t n_frames = frames.size();
   if (n_frames < 2) {
@@ -146,12 +141,18 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
 
   const int column_reach =
       std::max(1, static_cast<int>(std::lround(projector.row_spacing_rad() / projector.column_spacing_rad())));
-  std::vector<Normals> normals;
   std::vector<std::vector<size_t>> samples;
-  for (const FramePoints& f : frames) {
-    normals.emplace_back(f, projector, 2 * column_reach);
-    samples.push_back(sample_pixels(f, options));
-  }
+  for (const FramePoints& f : frames) samples.push_back(sample_pixels(f, options));
+  // Every return's normal, once: in the sensor frame they do not change as the knots move.
+  std::vector<std::vector<std::optional<Eigen::Vector3f>>> normals(n_frames);
+  pool.run(static_cast<int>(n_frames), [&](int, int item) {
+    const FramePoints& f = frames[static_cast<size_t>(item)];
+    auto& out = normals[static_cast<size_t>(item)];
+    out.assign(f.sensor.size(), std::nullopt);
+    for (size_t i = 0; i < f.sensor.size(); ++i) {
+      if (f.returned(i)) out[i] = normal_at(f, projector, 2 * column_reach, i);
+    }
+  });
   size_t returns = 0;
   for (const auto& s : samples) returns += s.size();
   if (returns < 100 * n_frames) {
@@ -172,15 +173,14 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
     const TrajectoryPoses placed(trajectory);
     for (FramePoints& f : frames) analysis_detail::place(f, placed);
 
-    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(unknowns), static_cast<Eigen::Index>(unknowns));
-    Eigen::VectorXd g = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(unknowns));
-    std::vector<double> residuals;
-    double weighted2 = 0.0, weights = 0.0;
-    for (size_t k = 0; k < n_frames; ++k) {
+    std::vector<FrameSums> sums(n_frames);
+    pool.run(static_cast<int>(n_frames), [&](int, int item) {
+      const auto k = static_cast<size_t>(item);
+      FrameSums& sum = sums[k];
       const FramePoints& source = frames[k];
       for (const size_t j : {k - 1, k + 1}) {
         if (j >= n_frames) continue;  // k - 1 wraps for k = 0
-        FramePoints& target = frames[j];
+        const FramePoints& target = frames[j];
         for (const size_t s : samples[k]) {
           const Eigen::Vector3f x = source.world[s];
           const auto range = static_cast<double>(source.range_m[s]);
@@ -202,16 +202,16 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
             }
           }
           if (best_i == std::numeric_limits<size_t>::max()) continue;
-          const std::optional<Eigen::Vector3f>& local = normals[j].at(best_i);
+          const std::optional<Eigen::Vector3f>& local = normals[j][best_i];
           if (!local) continue;
           const auto tm = static_cast<size_t>(best_i / static_cast<size_t>(target.height));
           const Eigen::Vector3d n = (target.rotation[tm] * *local).cast<double>();
           const Eigen::Vector3d xs = x.cast<double>(), xt = target.world[best_i].cast<double>();
           const double e = n.dot(xs - xt);
-          residuals.push_back(std::abs(e));
+          sum.residuals.push_back(std::abs(e));
           const double w = 1.0 / (1.0 + (e / (2.0 * scale)) * (e / (2.0 * scale)));  // Cauchy
-          weighted2 += w * e * e;
-          weights += w;
+          sum.weighted2 += w * e * e;
+          sum.weights += w;
           // d e / d knot: the point moves with its column, a blend of the knots around its time.
           const auto sm = static_cast<size_t>(s / static_cast<size_t>(source.height));
           const KnotWeight ks = knot_weight(times, source.column_time_s[sm]);
@@ -225,16 +225,39 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
               {kt.k, (1.0 - kt.u) * jt},
               {kt.k + 1, kt.u * jt},
           }};
+          const auto in_block = [k](size_t knot) { return knot + 1 >= k && knot + 1 - k < 4; };  // k - 1 .. k + 2
           for (const auto& [a, ja] : terms) {
-            if (a == 0) continue;
-            const auto ra = static_cast<Eigen::Index>((a - 1) * kBlock);
-            g.segment<kBlock>(ra) += w * e * ja;
+            if (!in_block(a)) continue;
+            const auto ra = static_cast<Eigen::Index>((a + 1 - k) * kBlock);  // knot k - 1 is local 0
+            sum.g.segment<kBlock>(ra) += w * e * ja;
             for (const auto& [b, jb] : terms) {
-              if (b == 0) continue;
-              const auto rb = static_cast<Eigen::Index>((b - 1) * kBlock);
-              h.block<kBlock, kBlock>(ra, rb) += w * ja * jb.transpose();
+              if (!in_block(b)) continue;
+              const auto rb = static_cast<Eigen::Index>((b + 1 - k) * kBlock);
+              sum.h.block<kBlock, kBlock>(ra, rb) += w * ja * jb.transpose();
             }
           }
+        }
+      }
+    });
+    Eigen::MatrixXd h = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(unknowns), static_cast<Eigen::Index>(unknowns));
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(unknowns));
+    std::vector<double> residuals;
+    double weighted2 = 0.0, weights = 0.0;
+    for (size_t k = 0; k < n_frames; ++k) {
+      const FrameSums& sum = sums[k];
+      residuals.insert(residuals.end(), sum.residuals.begin(), sum.residuals.end());
+      weighted2 += sum.weighted2;
+      weights += sum.weights;
+      for (int la = 0; la < FrameSums::kKnots; ++la) {
+        const size_t a = k + static_cast<size_t>(la) - 1;  // knot; knot 0 is the world, fixed
+        if (k + static_cast<size_t>(la) < 2 || a > n_frames) continue;
+        const auto ra = static_cast<Eigen::Index>((a - 1) * kBlock);
+        g.segment<kBlock>(ra) += sum.g.segment<kBlock>(la * kBlock);
+        for (int lb = 0; lb < FrameSums::kKnots; ++lb) {
+          const size_t b = k + static_cast<size_t>(lb) - 1;
+          if (k + static_cast<size_t>(lb) < 2 || b > n_frames) continue;
+          h.block<kBlock, kBlock>(ra, static_cast<Eigen::Index>((b - 1) * kBlock)) +=
+              sum.h.block<kBlock, kBlock>(la * kBlock, lb * kBlock);
         }
       }
     }
@@ -260,7 +283,7 @@ FrameRegistration register_frames(const MeasuredCapture& capture, const Registra
     out.pairs = residuals.size();
     out.rms_m = weights > 0.0 ? std::sqrt(weighted2 / weights) : 0.0;
     out.iterations = iteration + 1;
-    if (iteration >= 4 && largest < 1e-5) break;
+    if (iteration >= 4 && largest < 1e-4) break;  // a tenth of a millimetre
   }
   std::vector<StampedPose> stamped;
   for (size_t k = 0; k <= n_frames; ++k) {

@@ -107,6 +107,7 @@ SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const 
 // surface the other frames saw.
 void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, const EffectChain& chain,
                const SensorProfile& profile, Steps& steps) {
+  WorkerPool pool(flags.threads);
   std::unique_ptr<PoseSource> poses;
   if (!in.pose.empty()) {
     poses = load_measured_poses(in.pose);
@@ -114,14 +115,13 @@ void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, cons
     steps.start("registering the frames to each other");
     RegistrationOptions options;
     options.max_range_m = profile.max_range_m;
-    out.registration = register_frames(out.capture, options);
+    out.registration = register_frames(out.capture, pool, options);
     const Trajectory& trajectory = out.registration->trajectory;
     const PoseSpan span{trajectory.start_s(), trajectory.start_s() + trajectory.duration_s()};
     poses = std::make_unique<TrajectoryPoses>(trajectory, span);
     steps.done();
   }
   steps.start("fitting each return's surface from the other frames and predicting it");
-  WorkerPool pool(flags.threads);
   MapTableSetup setup{out.capture, *poses, in.pose.empty() ? 0.0 : flags.time_offset_s, chain, profile.max_range_m};
   setup.progress = [&steps](double fraction) {
     steps.progress("fitting each return's surface from the other frames and predicting it", fraction);

@@ -11,6 +11,7 @@
 #include <cstddef>
 
 #include "lidartwin/analysis/measured_capture.h"
+#include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/pose/pose.h"
 
 namespace lidartwin {
@@ -31,6 +32,7 @@ struct FrameRegistration {
 };
 
 // Throws InputError when the capture has fewer than two frames or too few returns to register.
-FrameRegistration register_frames(const MeasuredCapture& capture, const RegistrationOptions& options = {});
+FrameRegistration register_frames(const MeasuredCapture& capture, WorkerPool& pool,
+                                  const RegistrationOptions& options = {});
 
 }  // namespace lidartwin
