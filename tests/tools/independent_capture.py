@@ -367,7 +367,7 @@ class Motion:
         raise SystemExit(
             f"independent_capture.py: the motion leaves the room: {t:.4f} s after the first column "
             f"(capture clock {T0_NS / 1e9 + t:.4f} s) the sensor is at ({at[0]:.3f}, {at[1]:.3f}, {at[2]:.3f}) m, "
-            f"less than {margin_m} m from the wall {axis} = {wall_m:g} m. The room is x [{BOX_MIN_M[0]:g}, "
+            f"within {margin_m} m of the wall {axis} = {wall_m:g} m. The room is x [{BOX_MIN_M[0]:g}, "
             f"{BOX_MAX_M[0]:g}], y [{BOX_MIN_M[1]:g}, {BOX_MAX_M[1]:g}], z [{BOX_MIN_M[2]:g}, {BOX_MAX_M[2]:g}] m "
             f"and the capture lasts {t_end_s:g} s; use fewer --frames, a lower --velocity or another --start.")
 
