@@ -9,28 +9,53 @@ packet writer and reader cannot hide. Sections of the doc it relies on:
   4.1        packet sizes (32 B header, 12 B column header, 12 B/pixel, 32 B footer -> 12544 B)
   4.3-4.6    STANDARD packet header, column header, footer with CRC-64/XZ, RNG19_RFL8_SIG16_NIR16 pixels
   6.1 / 6.2  1024x10 timing, frame_id / measurement_id / init_id rules
-  7.1 / 7.2  the SDK's XYZ projection and its exact inverse (range = distance along the ray)
+  7.1 / 7.2  the SDK's XYZ projection and its exact inverse (range = distance along the ray), each
+             column cast from the sensor's pose at that column's own time
   9          classic libpcap captures with one Ethernet/IPv4/UDP record per lidar packet
 
 Files written to OUT_DIR:
-  scene.gltf     glTF 2.0 box room (buffer embedded as a base64 data URI), material extras
-                 {"reflectivity": 0.5}. World (Z up) box x[-10,12] y[-7,6] z[-1.5,4.5] m;
-                 world = M * gltf with M = [[1,0,0],[0,0,-1],[0,1,0]].
-  pose.tum       "0 0 0 0 0 0 0 1": the sensor frame equals the world frame.
+  scene.gltf     glTF 2.0 box room (buffer embedded as a base64 data URI). World (Z up) box
+                 x[-10,12] y[-7,6] z[-1.5,4.5] m; world = M * gltf with M = [[1,0,0],[0,0,-1],[0,1,0]].
+                 By default one mesh and one material, extras {"reflectivity": 0.5}; with
+                 --wall-reflectivity one node, mesh and material per wall (named wall_x_min, wall_x_max,
+                 wall_y_min, wall_y_max, wall_z_min = the floor, wall_z_max = the ceiling, in that
+                 order), each material's extras {"reflectivity": R} with its wall's R.
+  pose.tum       the ground-truth trajectory world_from_sensor (the Ouster sensor frame of 7.2 in the
+                 world frame above), TUM "t tx ty tz qx qy qz qw" (metres, unit quaternion).
+                 Static sensor: one line "0 X Y Z 0 0 0 1" (at the origin "0 0 0 0 0 0 0 1"), a fixed
+                 pose. Moving sensor: frames + 1 knots stamped on the capture's column-timestamp clock
+                 in seconds (column timestamp ns / 1e9; the first column is at 1.0 s): one at each
+                 frame's first column, t = 1.0 + 0.1 k, and one where the last frame ends. Between two
+                 knots the motion is linear in t and its rotation one turn about world Z at a constant
+                 rate (less than 180 deg per frame), so linear interpolation of the translation and
+                 SLERP of the rotation reproduce the pose of every column exactly.
   metadata.json  OS-1-64, 1024x10, RNG19_RFL8_SIG16_NIR16, 16 columns per packet.
   capture.pcap   --frames frames x 64 lidar packets of 12544 B, 192.168.1.10:7502 -> 192.168.1.100:7502,
                  unfragmented (jumbo) IPv4.
+  truth.json     the hidden effects' and the radiometry's true values; with --wall-reflectivity the
+                 walls' ("wall_reflectivity"), with motion or --start the motion's ("motion").
+
+Motion (--velocity VX VY VZ m/s in the world frame, --yaw-rate DEG_PER_S about world Z, --start X Y Z;
+all 0 by default: a static sensor whose frame is the world frame, as before these options existed).
+Column c (measurement id) of frame f has timestamp t_c = 1 s + f * 0.1 s + floor(c * 1e8 / 1024) ns
+(6.1), the same value its column header carries, and is cast from the pose at t_c:
+  p(t) = start + velocity * (t - t0),  R(t) = Rz(yaw_rate * (t - t0)),  t0 = the first column's time,
+so at t0 the sensor's axes are the world's, at position --start. A ray (O_s, D_s) of 7.1 goes to the
+world as (R(t_c) O_s + p(t_c), R(t_c) D_s). All 64 rows of a column share its time and pose. The
+generator refuses (exit status 1, a message saying when and where) a motion that brings the sensor
+within 0.5 m of a wall between the first column and the end of the last frame.
 
 Range model: for beam (row r, measurement id m) the ray of section 7.1 (origin O_s, unit direction D_s in
-the sensor frame, mm) is intersected analytically with the box; the distance s along D_s is the
-noise-free range. Gaussian noise with sigma = sigma0 + slope * s[m] (metres) is added, then the value
-is rounded to whole mm.
+the sensor frame, mm), taken to the world by the column's pose, is intersected analytically with the
+box; the distance s along D_s is the noise-free range. Gaussian noise with sigma = sigma0 + slope * s[m]
+(metres) is added, then the value is rounded to whole mm.
 
 Radiometry (lidar-physics.md 2.2, with this generator's own constants, written to truth.json):
   S = K rho cos(theta) g(r) / r^2, g(r) = 1 / (1 + (r0 / r)^p)   expected signal photons
   B = A rho                                                     expected ambient (near-IR) photons
   SIGNAL ~ Poisson(S), NEAR_IR ~ Poisson(B), REFLECTIVITY = round(100 rho cos(theta))
-with K = 2.2e5 photons m^2, r0 = 5 m, p = 3, A = 30 photons and rho = 0.5 (the scene's material).
+with K = 2.2e5 photons m^2, r0 = 5 m, p = 3, A = 30 photons and rho the diffuse reflectivity of the
+wall the ray meets (0.5 everywhere unless --wall-reflectivity), theta the incidence on that wall.
 
 Hidden effects, written from lidar-physics.md's models alone (all off by default):
   E4  --divergence G          variance += (r tan(theta) G / 2.355)^2, theta the incidence on the wall
@@ -48,7 +73,11 @@ The true values go to truth.json beside the capture (per-beam offsets and scales
 Run (numpy is needed; use the system interpreter):
   /usr/bin/python3 tests/tools/independent_capture.py OUT_DIR [--frames N] [--seed S]
                    [--sigma0 0.01] [--slope 0.0014] [hidden effects]
-Use --sigma0 0 --slope 0 for noise-free ranges (each decoded point then lies within 0.5 mm of a wall).
+                   [--velocity VX VY VZ] [--yaw-rate DEG_PER_S] [--start X Y Z]
+                   [--wall-reflectivity X_MIN X_MAX Y_MIN Y_MAX Z_MIN Z_MAX]
+Use --sigma0 0 --slope 0 for noise-free ranges (each decoded point, taken to the world by its column's
+pose, then lies within 0.5 mm of a wall). With the default options the output is byte for byte what
+the generator wrote before the motion and wall options existed.
 """
 
 import argparse
@@ -174,37 +203,86 @@ def box_triangles_gltf():
     return corners.astype(np.float32), np.array(tris, dtype=np.uint16)
 
 
-def write_gltf(path):
+WALLS = ("x_min", "x_max", "y_min", "y_max", "z_min", "z_max")   # world frame; z_min is the floor
+
+
+def wall_of_triangle(verts_gltf, tri):
+    """Which of WALLS a triangle lies on: the world axis its corners share, and at which bound."""
+    world = (GLTF_TO_WORLD @ verts_gltf[list(tri)].astype(float).T).T
+    for k in range(3):
+        if np.ptp(world[:, k]) == 0:
+            return 2 * k + int(abs(world[0, k] - BOX_MAX_M[k]) < abs(world[0, k] - BOX_MIN_M[k]))
+    raise AssertionError("a box triangle off every wall")
+
+
+def wall_material(name, reflectivity):
+    return {"name": name, "doubleSided": True,
+            "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0],
+                                     "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extras": {"reflectivity": reflectivity}}
+
+
+def write_gltf(path, wall_reflectivity=None):
+    """One mesh and material for the whole room (reflectivity 0.5); with wall_reflectivity (six values,
+    in WALLS' order), one mesh, node and material per wall, sharing the corners' accessor."""
     verts, tris = box_triangles_gltf()
+    if wall_reflectivity is not None:                   # the triangles grouped by wall, in WALLS' order
+        walls = [wall_of_triangle(verts, tri) for tri in tris]
+        tris = np.array([tris[i] for w in range(6) for i in range(len(tris)) if walls[i] == w], dtype=np.uint16)
+        assert sorted(walls) == [w for w in range(6) for _ in range(2)]
     vbytes, ibytes = verts.tobytes(), tris.tobytes()
     blob = vbytes + ibytes                               # 96 B of positions is 4-byte aligned
+    positions = {"bufferView": 0, "componentType": 5126, "count": len(verts), "type": "VEC3",
+                 "min": verts.min(axis=0).tolist(), "max": verts.max(axis=0).tolist()}
+    if wall_reflectivity is None:
+        nodes = [{"name": "room", "mesh": 0}]
+        meshes = [{"name": "room", "primitives": [
+            {"attributes": {"POSITION": 0}, "indices": 1, "material": 0, "mode": 4}]}]
+        materials = [wall_material("wall", 0.5)]
+        accessors = [positions, {"bufferView": 1, "componentType": 5123, "count": tris.size, "type": "SCALAR"}]
+    else:
+        nodes = [{"name": f"wall_{w}", "mesh": i} for i, w in enumerate(WALLS)]
+        meshes = [{"name": f"wall_{w}", "primitives": [
+            {"attributes": {"POSITION": 0}, "indices": 1 + i, "material": i, "mode": 4}]}
+            for i, w in enumerate(WALLS)]
+        materials = [wall_material(f"wall_{w}", float(r)) for w, r in zip(WALLS, wall_reflectivity)]
+        accessors = [positions] + [{"bufferView": 1, "byteOffset": i * 6 * 2, "componentType": 5123,
+                                    "count": 6, "type": "SCALAR"} for i in range(6)]
     doc = {
         "asset": {"version": "2.0", "generator": "lidartwin independent_capture.py"},
-        "scene": 0, "scenes": [{"nodes": [0]}],
-        "nodes": [{"name": "room", "mesh": 0}],
-        "meshes": [{"name": "room", "primitives": [
-            {"attributes": {"POSITION": 0}, "indices": 1, "material": 0, "mode": 4}]}],
-        "materials": [{"name": "wall", "doubleSided": True,
-                       "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0],
-                                                "metallicFactor": 0.0, "roughnessFactor": 1.0},
-                       "extras": {"reflectivity": 0.5}}],
+        "scene": 0, "scenes": [{"nodes": list(range(len(nodes)))}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
         "buffers": [{"byteLength": len(blob), "uri": "data:application/octet-stream;base64,"
                      + base64.b64encode(blob).decode("ascii")}],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": len(vbytes), "target": 34962},
             {"buffer": 0, "byteOffset": len(vbytes), "byteLength": len(ibytes), "target": 34963}],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": len(verts), "type": "VEC3",
-             "min": verts.min(axis=0).tolist(), "max": verts.max(axis=0).tolist()},
-            {"bufferView": 1, "componentType": 5123, "count": tris.size, "type": "SCALAR"}],
+        "accessors": accessors,
     }
     with open(path, "w") as f:
         json.dump(doc, f, indent=1)
 
 
-def write_pose(path):
+def write_pose(path, motion, frames):
+    """TUM world_from_sensor. A static sensor: one line at t = 0 (a fixed pose). A moving one: a knot
+    at each frame's first column and one where the last frame ends, stamped in seconds on the
+    column-timestamp clock; between knots the motion is linear in t (translation) and one rotation
+    about world Z at a constant rate (SLERP), so interpolating the knots reproduces it exactly."""
     with open(path, "w") as f:
-        f.write("0 0 0 0 0 0 0 1\n")
+        if not motion.moving:
+            if np.any(motion.start != 0):
+                f.write(f"0 {motion.start[0]!r} {motion.start[1]!r} {motion.start[2]!r} 0 0 0 1\n")
+            else:
+                f.write("0 0 0 0 0 0 0 1\n")
+            return
+        knots_ns = T0_NS + np.arange(frames + 1, dtype=np.int64) * FRAME_NS
+        _, pos_m, yaw = motion.at_ns(knots_ns)
+        for ts, p, a in zip(knots_ns, pos_m, yaw):
+            q = (0.0, 0.0, float(np.sin(a / 2)), float(np.cos(a / 2)))     # x y z w, about world Z
+            f.write(f"{int(ts) // 1_000_000_000}.{int(ts) % 1_000_000_000:09d} "
+                    + " ".join(repr(float(v)) for v in (*p, *q)) + "\n")
 
 
 # ---------------------------------------------------------------- geometry (7.1, 7.2)
@@ -232,32 +310,92 @@ def beam_rays(meta):
 
 def box_exit(origin, direction, lo, hi):
     """Distance along unit `direction` from `origin` (inside the box) to the first wall (slab method),
-    and the cosine of the incidence there (the wall's normal is the axis the ray leaves by)."""
+    the cosine of the incidence there (the wall's normal is the axis the ray leaves by) and which wall
+    it is (WALLS: 2 * axis + 1 if the ray leaves through the axis' upper bound)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         bound = np.where(direction > 0, hi, lo)
         t = np.where(direction != 0, (bound - origin) / direction, np.inf)
     axis = t.argmin(axis=-1)
-    cos_incidence = np.abs(np.take_along_axis(direction, axis[..., None], axis=-1)[..., 0])
-    return t.min(axis=-1), cos_incidence
+    along = np.take_along_axis(direction, axis[..., None], axis=-1)[..., 0]
+    wall = 2 * axis + (along > 0)
+    return t.min(axis=-1), np.abs(along), wall
 
 
-def true_ranges_mm(meta):
-    """Noise-free range (mm, float) and the incidence's cosine per (row, measurement id); the sensor
-    frame equals the world frame."""
-    origin, direction = beam_rays(meta)
+class Motion:
+    """The sensor's ground-truth motion: world_from_sensor(t) = (R(t), p(t)) with
+    p(t) = start + velocity * (t - t0) and R(t) the rotation by yaw_rate * (t - t0) about world Z,
+    t0 the capture's first column (T0_NS). Times are the column-timestamp clock (ns or s)."""
+
+    def __init__(self, velocity_mps, yaw_rate_deg_s, start_m):
+        self.velocity = np.array(velocity_mps, dtype=float)
+        self.yaw_rate = np.radians(yaw_rate_deg_s)
+        self.start = np.array(start_m, dtype=float)
+        self.moving = bool(np.any(self.velocity != 0) or self.yaw_rate != 0)
+
+    def at_ns(self, ts_ns):
+        """Rotations (..., 3, 3), positions (..., 3) in metres and yaw angles (rad) at column times (ns)."""
+        dt = (np.asarray(ts_ns, dtype=np.int64) - T0_NS) / 1e9
+        yaw = self.yaw_rate * dt
+        c, s = np.cos(yaw), np.sin(yaw)
+        zero, one = np.zeros_like(yaw), np.ones_like(yaw)
+        rot = np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1),
+                        np.stack([zero, zero, one], -1)], -2)
+        return rot, self.start + dt[..., None] * self.velocity, yaw
+
+    def check_inside_room(self, frames, margin_m=0.5):
+        """The sensor must stay at least margin_m inside every wall from the first column to the end of
+        the last frame; otherwise exit with a message saying when and where it leaves."""
+        t_end_s = frames * FRAME_NS / 1e9
+        first = None                                      # (seconds after t0, axis, wall coordinate)
+        for k, axis in enumerate("xyz"):
+            for wall_m, limit, sign in ((BOX_MIN_M[k], BOX_MIN_M[k] + margin_m, 1.0),
+                                        (BOX_MAX_M[k], BOX_MAX_M[k] - margin_m, -1.0)):
+                inside = sign * (self.start[k] - limit)   # >= 0 while at least margin_m from the wall
+                rate = sign * self.velocity[k]
+                if inside < 0:
+                    t = 0.0
+                elif rate < 0 and inside / -rate < t_end_s:
+                    t = inside / -rate
+                else:
+                    continue
+                if first is None or t < first[0]:
+                    first = (t, axis, wall_m)
+        if first is None:
+            return
+        t, axis, wall_m = first
+        at = self.start + t * self.velocity
+        raise SystemExit(
+            f"independent_capture.py: the motion leaves the room: {t:.4f} s after the first column "
+            f"(capture clock {T0_NS / 1e9 + t:.4f} s) the sensor is at ({at[0]:.3f}, {at[1]:.3f}, {at[2]:.3f}) m, "
+            f"within {margin_m} m of the wall {axis} = {wall_m:g} m. The room is x [{BOX_MIN_M[0]:g}, "
+            f"{BOX_MAX_M[0]:g}], y [{BOX_MIN_M[1]:g}, {BOX_MAX_M[1]:g}], z [{BOX_MIN_M[2]:g}, {BOX_MAX_M[2]:g}] m "
+            f"and the capture lasts {t_end_s:g} s; use fewer --frames, a lower --velocity or another --start.")
+
+
+def true_ranges_mm(rays, motion, frame):
+    """Noise-free range (mm, float), the incidence's cosine and the wall hit per (row, measurement id)
+    of one frame. Each column is cast from the pose at its own timestamp (protocol doc 6.1, 7.2): its
+    ray (O_s, D_s) goes to the world as R(t) O_s + p(t), R(t) D_s. A static sensor at the origin
+    casts the sensor-frame rays as they are (the sensor frame is the world frame)."""
+    origin, direction = rays
+    if motion.moving or np.any(motion.start != 0):
+        rot, pos_m, _ = motion.at_ns(column_timestamp_ns(frame, np.arange(W)))
+        origin = np.einsum("wij,hwj->hwi", rot, origin) + pos_m[None, :, :] * 1000.0
+        direction = np.einsum("wij,hwj->hwi", rot, direction)
     return box_exit(origin, direction, BOX_MIN_M * 1000.0, BOX_MAX_M * 1000.0)
 
 
 class Radiometry:
     """lidar-physics.md 2.2: the expected signal and ambient of each pixel, this generator's constants."""
-    GAIN, OVERLAP_M, OVERLAP_EXPONENT, AMBIENT, RHO = 2.2e5, 5.0, 3.0, 30.0, 0.5
+    GAIN, OVERLAP_M, OVERLAP_EXPONENT, AMBIENT, RHO = 2.2e5, 5.0, 3.0, 30.0, 0.5   # RHO: the walls' default
 
-    def __init__(self, true_mm, cos_incidence):
+    def __init__(self, true_mm, cos_incidence, rho):
+        """rho: each pixel's diffuse reflectivity (its wall's)."""
         r_m = true_mm / 1000.0
         overlap = 1.0 / (1.0 + (self.OVERLAP_M / r_m) ** self.OVERLAP_EXPONENT)
-        self.rho_app = self.RHO * cos_incidence
+        self.rho_app = rho * cos_incidence
         self.signal = self.GAIN * self.rho_app * overlap / r_m ** 2
-        self.ambient = np.full(true_mm.shape, self.AMBIENT * self.RHO)
+        self.ambient = self.AMBIENT * rho
 
     @classmethod
     def truth(cls):
@@ -399,15 +537,23 @@ def pcap_record(ts_ns, frame_bytes):
     return struct.pack("<IIII", sec, usec, len(frame_bytes), len(frame_bytes)) + frame_bytes
 
 
-def write_pcap(path, meta, frames, rng, channel_rng, sigma0, slope, hidden):
+def frame_truth(rays, motion, wall_rho, frame):
+    true_mm, cos_incidence, wall = true_ranges_mm(rays, motion, frame)
+    return true_mm, cos_incidence, Radiometry(true_mm, cos_incidence, wall_rho[wall])
+
+
+def write_pcap(path, meta, frames, rng, channel_rng, sigma0, slope, hidden, motion, wall_rho):
     """rng: the range noise; channel_rng: SIGNAL, NEAR_IR and detection (their own stream, so that
-    a seed gives the same range noise whichever channels are drawn)."""
-    true_mm, cos_incidence = true_ranges_mm(meta)
-    radiometry = Radiometry(true_mm, cos_incidence)
+    a seed gives the same range noise whichever channels are drawn). A moving sensor's frames are
+    each cast from their own columns' poses; a static sensor's once."""
+    rays = beam_rays(meta)
+    true_mm, cos_incidence, radiometry = frame_truth(rays, motion, wall_rho, 0)
     ident = 0
     with open(path, "wb") as f:
         f.write(pcap_global_header())
         for frame in range(frames):
+            if motion.moving and frame > 0:
+                true_mm, cos_incidence, radiometry = frame_truth(rays, motion, wall_rho, frame)
             ranges = measured_ranges_mm(true_mm, cos_incidence, radiometry, rng, sigma0, slope, hidden, frame)
             signal, refl, nir = measured_channels(radiometry, channel_rng)
             lost = ~hidden.detected(radiometry, channel_rng)
@@ -437,24 +583,49 @@ def parse_args():
     p.add_argument("--drift-mu0", type=float, default=0.0, help="E12: common offset at t = 0, m")
     p.add_argument("--drift-muinf", type=float, default=0.0, help="E12: common offset after warm-up, m")
     p.add_argument("--drift-tau", type=float, default=0.0, help="E12: warm-up time constant, s (0: off)")
-    return p.parse_args()
+    p.add_argument("--velocity", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("VX", "VY", "VZ"),
+                   help="the sensor's constant velocity, m/s, world frame")
+    p.add_argument("--yaw-rate", type=float, default=0.0, metavar="DEG_PER_S",
+                   help="the sensor's constant rotation rate about world Z, deg/s")
+    p.add_argument("--start", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("X", "Y", "Z"),
+                   help="the sensor's position at the first column, m, world frame (orientation: the world's)")
+    p.add_argument("--wall-reflectivity", type=float, nargs=6, default=None,
+                   metavar=("X_MIN", "X_MAX", "Y_MIN", "Y_MAX", "Z_MIN", "Z_MAX"),
+                   help="the walls' diffuse reflectivities (default: one material, 0.5)")
+    args = p.parse_args()
+    if args.frames < 1:
+        p.error("--frames must be at least 1")
+    if abs(args.yaw_rate) * FRAME_NS / 1e9 >= 180.0:
+        p.error("--yaw-rate: the sensor must turn less than 180 deg per frame (the pose knots are one frame apart)")
+    if args.wall_reflectivity is not None and not all(0 < r <= 1 for r in args.wall_reflectivity):
+        p.error("--wall-reflectivity: each value must be in (0, 1]")
+    return args
 
 
 def main():
     args = parse_args()
+    motion = Motion(args.velocity, args.yaw_rate, args.start)
+    motion.check_inside_room(args.frames)
     os.makedirs(args.out_dir, exist_ok=True)
+    wall_rho = np.array(args.wall_reflectivity if args.wall_reflectivity is not None else [Radiometry.RHO] * 6)
     meta = make_metadata()
-    write_gltf(os.path.join(args.out_dir, "scene.gltf"))
-    write_pose(os.path.join(args.out_dir, "pose.tum"))
+    write_gltf(os.path.join(args.out_dir, "scene.gltf"), args.wall_reflectivity)
+    write_pose(os.path.join(args.out_dir, "pose.tum"), motion, args.frames)
     with open(os.path.join(args.out_dir, "metadata.json"), "w") as f:
         json.dump(meta, f, indent=1)
     rng = np.random.default_rng(args.seed)
     hidden = Hidden(args)
     with open(os.path.join(args.out_dir, "truth.json"), "w") as f:
-        json.dump({**hidden.truth(), "radiometry": Radiometry.truth()}, f, indent=1)
+        truth = {**hidden.truth(), "radiometry": Radiometry.truth()}
+        if args.wall_reflectivity is not None:
+            truth["wall_reflectivity"] = dict(zip(WALLS, args.wall_reflectivity))
+        if motion.moving or np.any(motion.start != 0):
+            truth["motion"] = {"velocity_mps": args.velocity, "yaw_rate_deg_s": args.yaw_rate,
+                               "start_m": args.start, "t0_s": T0_NS / 1e9}
+        json.dump(truth, f, indent=1)
     channel_rng = np.random.default_rng([args.seed, 1])
     n = write_pcap(os.path.join(args.out_dir, "capture.pcap"), meta, args.frames, rng, channel_rng,
-                   args.sigma0, args.slope, hidden)
+                   args.sigma0, args.slope, hidden, motion, wall_rho)
     print("scene: scene.gltf")
     print(f"wrote scene.gltf, pose.tum, metadata.json, capture.pcap ({n} lidar packets of "
           f"{PACKET_BYTES} B, {args.frames} frames) to {args.out_dir}")
