@@ -257,3 +257,31 @@ TEST(CompareRealCapture, StaticModeOnAMotionlessOs0128SeesSpreadFallWithReflecti
 }
 
 }  // namespace
+
+namespace {
+
+// A moving capture the independent generator wrote (tests/tools/independent_capture.py: its own
+// packets, radiometry and noise, from the protocol and physics documents alone), six walls of
+// different reflectivity, with signal-dependent precision (E2) hidden: map mode, without the
+// room's mesh, names E2 as the scene-based diagnosis does, with k near the generator's.
+TEST(CompareMapIndependentCapture, MapModeNamesTheHiddenSignalDependentPrecision) {
+  const fs::path dir = temp("map_independent_e2");
+  const std::string generate = "/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
+                               " --frames 8 --seed 3 --velocity 1 0 0 --yaw-rate 20 --snr-k 0.4"
+                               " --wall-reflectivity 0.08 0.15 0.3 0.5 0.7 0.95 > /dev/null";
+  ASSERT_EQ(std::system(generate.c_str()), 0) << generate;
+  const fs::path out = dir / "map";
+  const CliRun r = lidartwin("compare --map --diagnose --capture " + (dir / "capture.pcap").string() + " --metadata " +
+                             (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
+                             " --profile os1-32-paper --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json report = read_json(out / "report.json");
+  const auto& selected = report["diagnosis"]["selected"];
+  ASSERT_FALSE(selected.empty()) << report["diagnosis"].dump();
+  EXPECT_EQ(selected[0]["effect"], "signal_precision");
+  ASSERT_TRUE(selected[0]["params"].contains("k_m")) << selected[0].dump();
+  EXPECT_NEAR(selected[0]["params"]["k_m"]["value"].get<double>(), 0.4, 0.06) << selected[0].dump();
+  fs::remove_all(dir);
+}
+
+}  // namespace

@@ -108,34 +108,22 @@ class MapReferences {
     const Eigen::Vector3f x = own.world[i];
     const double range = static_cast<double>(own.range_m[i]);
     const double spacing = std::max(projector_.row_spacing_rad(), projector_.column_spacing_rad());
-    const double half = std::max(kMinPatchM, 1.5 * range * spacing);
-    const int rows = std::clamp(static_cast<int>(std::ceil(half / (range * projector_.row_spacing_rad()))), 1, 6);
-    const int columns =
-        std::clamp(static_cast<int>(std::ceil(half / (range * projector_.column_spacing_rad()))), 1, 12);
-    const auto radius2 = static_cast<float>(2.25 * half * half);
-    points.clear();
-    size_t frames_used = 0;
-    const size_t first = k >= static_cast<size_t>(neighbour_frames_) ? k - static_cast<size_t>(neighbour_frames_) : 0;
-    const size_t last = std::min(frames_.size() - 1, k + static_cast<size_t>(neighbour_frames_));
-    for (size_t j = first; j <= last; ++j) {
-      if (j == k) continue;
-      const FramePoints& other = frames_[j];
-      const BeamProjector::Pixel seed = projector_.project_world(other, x);
-      const size_t before = points.size();
-      for (int dm = -columns; dm <= columns; ++dm) {
-        for (int dr = -rows; dr <= rows; ++dr) {
-          const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
-          if (!near) continue;
-          const size_t t = other.index(near->m, near->r);
-          if (!other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
-          points.push_back(other.world[t].cast<double>());
-        }
-      }
-      frames_used += points.size() > before;
-    }
-    if (points.size() < kMinPoints || frames_used < 2) return Verdict::kUnsupported;
+    // A noisy surface needs a wider patch to show its shape above its roughness: the patch grows
+    // (twice, four times) until it does, so that the pixels left out are not the noisiest ones.
+    const double base = std::max(kMinPatchM, 1.5 * range * spacing);
     Surface s;
-    if (!fit(points, s)) return Verdict::kNotSurface;
+    double half = base;
+    for (int grow = 0;; ++grow) {
+      half = base * static_cast<double>(1 << grow);
+      const int rows = std::clamp(static_cast<int>(std::ceil(half / (range * projector_.row_spacing_rad()))), 1, 24);
+      const int columns =
+          std::clamp(static_cast<int>(std::ceil(half / (range * projector_.column_spacing_rad()))), 1, 48);
+      const size_t frames_used = gather(k, x, half, rows, columns, points);
+      if (points.size() < kMinPoints || frames_used < 2) return Verdict::kUnsupported;
+      const Fit fitted = fit(points, s);
+      if (fitted == Fit::kSurface) break;
+      if (fitted == Fit::kNotOneSurface || grow == 2) return Verdict::kNotSurface;
+    }
     // The beam, in the surface's frame, and where it meets the surface (Newton from the plane).
     const Eigen::Vector3d origin =
         (own.rotation[static_cast<size_t>(m)] * projector_.origin(m, r) + own.translation[static_cast<size_t>(m)])
@@ -175,7 +163,8 @@ class MapReferences {
   }
 
  private:
-  static bool fit(const std::vector<Eigen::Vector3d>& points, Surface& s) {
+  enum class Fit { kSurface, kRough, kNotOneSurface };
+  static Fit fit(const std::vector<Eigen::Vector3d>& points, Surface& s) {
     const auto n = static_cast<double>(points.size());
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& p : points) mean += p;
@@ -184,8 +173,9 @@ class MapReferences {
     for (const auto& p : points) covariance += (p - mean) * (p - mean).transpose();
     covariance /= n;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
-    const Eigen::Vector3d values = eigen.eigenvalues();                    // ascending
-    if (!(values(1) > 0.0) || values(1) < 0.05 * values(2)) return false;  // a line of points, not a patch
+    const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
+    if (!(values(1) > 0.0) || values(1) < 0.05 * values(2))
+      return Fit::kNotOneSurface;  // a line of points, not a patch
     s.centre = mean;
     s.e_w = eigen.eigenvectors().col(0);
     s.e_u = eigen.eigenvectors().col(2);
@@ -205,7 +195,7 @@ class MapReferences {
     const auto p = static_cast<Eigen::Index>(s.terms);
     const Eigen::MatrixXd a = normal.topLeftCorner(p, p);
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(a);
-    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return false;
+    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return Fit::kNotOneSurface;
     s.c.head(p) = ldlt.solve(rhs.head(p));
     s.inverse.topLeftCorner(p, p) = ldlt.solve(Eigen::MatrixXd::Identity(p, p));
     double rss = 0.0;
@@ -229,7 +219,36 @@ class MapReferences {
     // half-widths; a 3 m tank seen through a 0.15 m patch bends by a fortieth).
     const double half = 2.0 * std::sqrt(values(2));
     const double sag = (std::abs(s.c(3)) + 0.5 * std::abs(s.c(4)) + std::abs(s.c(5))) * half * half;
-    return s.residual_variance < values(1) / 9.0 && far < 2 && sag < 0.2 * half;
+    if (far >= 2 || sag >= 0.2 * half) return Fit::kNotOneSurface;
+    return s.residual_variance < values(1) / 9.0 ? Fit::kSurface : Fit::kRough;
+  }
+
+  // The points of frames k - n .. k + n but k within 1.5 half of x, from a window of rows x columns
+  // around where x falls in each; returns how many frames gave some.
+  size_t gather(size_t k, const Eigen::Vector3f& x, double half, int rows, int columns,
+                std::vector<Eigen::Vector3d>& points) const {
+    const auto radius2 = static_cast<float>(2.25 * half * half);
+    points.clear();
+    size_t frames_used = 0;
+    const size_t first = k >= static_cast<size_t>(neighbour_frames_) ? k - static_cast<size_t>(neighbour_frames_) : 0;
+    const size_t last = std::min(frames_.size() - 1, k + static_cast<size_t>(neighbour_frames_));
+    for (size_t j = first; j <= last; ++j) {
+      if (j == k) continue;
+      const FramePoints& other = frames_[j];
+      const BeamProjector::Pixel seed = projector_.project_world(other, x);
+      const size_t before = points.size();
+      for (int dm = -columns; dm <= columns; ++dm) {
+        for (int dr = -rows; dr <= rows; ++dr) {
+          const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
+          if (!near) continue;
+          const size_t t = other.index(near->m, near->r);
+          if (!other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
+          points.push_back(other.world[t].cast<double>());
+        }
+      }
+      frames_used += points.size() > before;
+    }
+    return frames_used;
   }
 
   // The normal of the pixel's own frame's points within `half` of it (world frame), when they
