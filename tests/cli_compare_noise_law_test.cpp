@@ -80,7 +80,7 @@ void expect_held_out_fit(const std::string& inputs, const std::string& base, con
 TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalAloneReplacesTheLinearLawBySignalPrecision) {
   const fs::path dir = fresh_dir("e2");
   ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                         " --frames 9 --seed 2 --sigma0 0.003 --slope 0 --snr-k 0.3 > /dev/null")
+                         " --frames 5 --seed 2 --sigma0 0.003 --slope 0 --snr-k 0.3 > /dev/null")
                             .c_str()),
             0);
   const nlohmann::json truth = read_json(dir / "truth.json");
@@ -88,7 +88,7 @@ TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalAloneReplacesTheLinearLawBySign
                              (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
                              " --pose " + (dir / "pose.tum").string();
   const test::CliRun r =
-      run_cli("compare" + inputs + " --frames 6 --no-plots --diagnose --profile os1-32-paper --out " +
+      run_cli("compare" + inputs + " --frames 3 --no-plots --diagnose --profile os1-32-paper --out " +
               (dir / "report").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("replace: range_noise_linear (E1) has the wrong form: signal_precision (E2)"),
@@ -110,15 +110,24 @@ TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalAloneReplacesTheLinearLawBySign
   EXPECT_TRUE(d["unexplained"].empty()) << d["unexplained"].dump(1);
   EXPECT_EQ(d["verdict"], "wrong effect form");
 
-  // fit applies the replacement on the same frames; the three held out are fitted.
+  // fit --auto applies what the diagnosis says, on the same frames; the two held out are fitted.
   const fs::path fitted = dir / "fitted.json";
-  const test::CliRun fit = run_cli("fit" + inputs + " --frames 6 --profile os1-32-paper --replace " +
-                                   "range_noise_linear=signal_precision --out " + fitted.string());
+  const test::CliRun fit =
+      run_cli("fit" + inputs + " --frames 3 --profile os1-32-paper --auto --out " + fitted.string());
   ASSERT_EQ(fit.exit_code, 0) << fit.output;
   std::printf("%s", fit.output.c_str());
   const nlohmann::json profile = read_json(fitted);
-  for (const auto& effect : profile["effects"]) EXPECT_NE(effect["name"], "range_noise_linear") << effect;
-  expect_held_out_fit(inputs, "os1-32-paper", fitted, 6, dir / "held_out");
+  bool e2 = false;
+  for (const auto& effect : profile["effects"]) {
+    EXPECT_NE(effect["name"], "range_noise_linear") << effect;
+    e2 = e2 || effect["name"] == "signal_precision";
+  }
+  EXPECT_TRUE(e2) << profile["effects"].dump(1);
+  bool noted = false;  // the "fit" section says what was replaced
+  for (const auto& note : profile["fit"]["effects"])
+    noted = noted || note.value("replaces", "") == "range_noise_linear";
+  EXPECT_TRUE(noted) << profile["fit"].dump(1);
+  expect_held_out_fit(inputs, "os1-32-paper", fitted, 3, dir / "held_out");
   fs::remove_all(dir);
 }
 
@@ -126,13 +135,13 @@ TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalAloneReplacesTheLinearLawBySign
 // recorded in the hall and compared with the paper's OS1 profile (the linear law, neither of the
 // others): the law is replaced by the datasheet table (OS1's, from the shipped profiles) with its
 // sigmas where the hall has ranges (10 mm from 1 to 20 m), and the incidence and dropout the
-// paper's profile lacks are added. `fit --auto` writes them.
+// paper's profile lacks are added. `fit --replace`, with them added, fits the held-out frames.
 TEST(CompareNoiseLaw, ADatasheetCaptureAgainstTheLinearLawReplacesItByTheTableAndAddsIncidence) {
   const fs::path dir = fresh_dir("os1_64");
   const std::string hall = kSource + "/scenes/calibration_hall.glb";
   const test::CliRun recorded =
       run_cli("record --profile os1-64 --scene " + hall + " --trajectory " + kSource +
-              "/scenes/calibration_hall_static.tum --frames 9 --seed 11 --out " + (dir / "capture").string());
+              "/scenes/calibration_hall_static.tum --frames 4 --seed 11 --out " + (dir / "capture").string());
   ASSERT_EQ(recorded.exit_code, 0) << recorded.output;
   const nlohmann::json os1_64 = read_json(kSource + "/profiles/os1-64.json");
   double divergence = 0.0;
@@ -142,7 +151,7 @@ TEST(CompareNoiseLaw, ADatasheetCaptureAgainstTheLinearLawReplacesItByTheTableAn
   ASSERT_GT(divergence, 0.0);
   const std::string inputs = " --capture " + (dir / "capture").string() + " --scene " + hall;
   const test::CliRun r =
-      run_cli("compare" + inputs + " --frames 6 --no-plots --diagnose --profile os1-32-paper --out " +
+      run_cli("compare" + inputs + " --frames 2 --no-plots --diagnose --profile os1-32-paper --out " +
               (dir / "report").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::printf("%s", r.output.substr(r.output.find("diagnosis on")).c_str());
@@ -172,17 +181,21 @@ TEST(CompareNoiseLaw, ADatasheetCaptureAgainstTheLinearLawReplacesItByTheTableAn
 
   const fs::path fitted = dir / "fitted.json";
   const test::CliRun fit =
-      run_cli("fit" + inputs + " --frames 6 --profile os1-32-paper --auto --out " + fitted.string());
+      run_cli("fit" + inputs +
+              " --frames 2 --profile os1-32-paper --replace range_noise_linear=range_noise_piecewise"
+              " --add dropout --add incidence --out " +
+              fitted.string());
   ASSERT_EQ(fit.exit_code, 0) << fit.output;
   std::printf("%s", fit.output.c_str());
+  const nlohmann::json profile = read_json(fitted);
   bool table = false, incidence = false;
-  for (const auto& effect : read_json(fitted)["effects"]) {
+  for (const auto& effect : profile["effects"]) {
     EXPECT_NE(effect["name"], "range_noise_linear") << effect;
     table = table || effect["name"] == "range_noise_piecewise";
     incidence = incidence || effect["name"] == "incidence";
   }
-  EXPECT_TRUE(table && incidence) << read_json(fitted)["effects"].dump(1);
-  expect_held_out_fit(inputs, "os1-32-paper", fitted, 6, dir / "held_out");
+  EXPECT_TRUE(table && incidence) << profile["effects"].dump(1);
+  expect_held_out_fit(inputs, "os1-32-paper", fitted, 2, dir / "held_out");
   fs::remove_all(dir);
 }
 

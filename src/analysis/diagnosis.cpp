@@ -326,7 +326,7 @@ void note_repairs(const Search& s, Diagnosis& d) {
 }
 
 // "range_noise_linear (E1) has the wrong form: signal_precision (E2) in its place, k_m 0.3 (95 %:
-// 0.29-0.31), ...; delta BIC +N (2 parameters for 0), +M over the best additive explanation (X, +K)".
+// 0.29-0.31), ...; delta BIC +N (2 parameters for 0), +M over the round's best additive candidate (X, +K)".
 std::string replacement_sentence(const Replacement& r) {
   std::string params;
   for (const FittedParameter& p : r.with.params) {
@@ -334,7 +334,7 @@ std::string replacement_sentence(const Replacement& r) {
   }
   const std::string against =
       r.additive.empty() ? std::string("no additive candidate to compare")
-                         : fmt::format("{:+.0f} over the best additive explanation ({}, {:+.0f})",
+                         : fmt::format("{:+.0f} over the round's best additive candidate ({}, {:+.0f})",
                                        r.with.delta_bic - r.additive_delta_bic, r.additive, r.additive_delta_bic);
   return fmt::format("{} ({}) has the wrong form: {} ({}) in its place{}; delta BIC {:+.0f} ({} parameters for {}), {}",
                      r.effect, r.catalogue, r.with.effect, r.with.catalogue, params, r.with.delta_bic,

@@ -150,6 +150,7 @@ int run_fit(const FitFlags& flags) {
   if (fitted.added.empty() && fitted.replaced.empty() && flags.automatic) {
     std::printf("no effect added or replaced: none improves BIC significantly (--auto)\n");
   }
+  for (const Candidate& c : fitted.refits) std::printf("refitted %s: delta BIC %+.1f\n", c.effect.c_str(), c.delta_bic);
   for (const Replacement& r : fitted.replaced) print_fit(r.with, r.effect);
   for (const Candidate& c : fitted.added) print_fit(c, "");
   std::printf("wrote %s\n", flags.out.c_str());
