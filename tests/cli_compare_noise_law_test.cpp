@@ -6,6 +6,7 @@
 //    covering the generator's.
 //  - A hall recording of os1-64 (the datasheet table, incidence), against os1-32-paper (the linear
 //    law, no incidence): replaced by the datasheet table, and incidence added.
+//  - The reverse: the generator's linear law against the datasheet table.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -20,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "support/cli_run.h"
+#include "support/table_profile.h"
 
 namespace lidartwin {
 namespace {
@@ -196,6 +198,37 @@ TEST(CompareNoiseLaw, ADatasheetCaptureAgainstTheLinearLawReplacesItByTheTableAn
   }
   EXPECT_TRUE(table && incidence) << profile["effects"].dump(1);
   expect_held_out_fit(inputs, "os1-32-paper", fitted, 2, dir / "held_out");
+  fs::remove_all(dir);
+}
+
+// The reverse: the generator's own linear law (10 mm + 1.4 mm/m) against the datasheet table
+// (os1-64 with its table effects only): the table is replaced by the linear law, whose sigma at 0
+// and at the table's last knot (100 m) cover the generator's 10 and 150 mm.
+TEST(CompareNoiseLaw, ALinearSpreadAgainstTheDatasheetTableReplacesTheTableByTheLinearLaw) {
+  const fs::path dir = fresh_dir("linear");
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
+                         " --frames 3 --seed 1 > /dev/null")
+                            .c_str()),
+            0);
+  const nlohmann::json truth = read_json(dir / "truth.json")["range_noise"];
+  const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
+                             (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
+                             " --pose " + (dir / "pose.tum").string();
+  const test::CliRun r =
+      run_cli("compare" + inputs + " --no-plots --diagnose --profile " +
+              table_profiles::table_profile("os1-64").string() + " --out " + (dir / "report").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json d = read_json(dir / "report" / "report.json")["diagnosis"];
+  ASSERT_EQ(d["replace"].size(), 1u) << d.dump(1);
+  const auto& replace = d["replace"][0];
+  EXPECT_EQ(replace["effect"], "range_noise_piecewise");
+  EXPECT_EQ(replace["replacement"]["effect"], "range_noise_linear");
+  EXPECT_GT(replace["delta_bic_vs_additive"].get<double>(), 10.0);
+  const double sigma0 = truth["sigma0_m"].get<double>();
+  expect_covers(replace["replacement"]["params"], "sigma0_m", sigma0);
+  expect_covers(replace["replacement"]["params"], "sigma_max_m", sigma0 + 100.0 * truth["slope"].get<double>());
+  EXPECT_TRUE(d["selected"].empty()) << d["selected"].dump(1);
+  EXPECT_TRUE(d["unexplained"].empty()) << d["unexplained"].dump(1);
   fs::remove_all(dir);
 }
 
