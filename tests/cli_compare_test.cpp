@@ -574,6 +574,20 @@ TEST_F(Compare, RefitNoiseRefitsTheDatasheetSigmasWhereTheCaptureHasRanges) {
   const CliRun off = lidartwin("compare" + inputs + " --no-plots --diagnose --out " + (dir / "off").string());
   ASSERT_EQ(off.code, 0) << off.err;
   EXPECT_TRUE(read_json(dir / "off" / "report.json")["diagnosis"]["parameter_misfit"].empty());
+
+  // `fit --refit-noise` writes the refitted sigmas into the profile (on 4 frames: 260 000 pixels).
+  const fs::path fitted = dir / "fitted.json";
+  const CliRun fit = lidartwin("fit" + inputs + " --frames 4 --refit-noise --out " + fitted.string());
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  const nlohmann::json written = read_json(fitted);
+  bool table = false;
+  for (const auto& effect : written["effects"]) {
+    if (effect["name"] != "range_noise_piecewise") continue;
+    table = true;
+    EXPECT_NEAR(effect["points_m"][2][1].get<double>(), 0.01, 0.0005) << effect.dump();
+    EXPECT_NEAR(effect["points_m"][3][1].get<double>(), 0.01, 0.0005) << effect.dump();
+  }
+  EXPECT_TRUE(table) << written["effects"].dump(1);
 }
 
 // E2 and E3, each hidden alone: named first and fitted.

@@ -91,6 +91,7 @@ int run_compare(const CompareFlags& flags) {
     diagnose_options.alpha = flags.alpha;
     diagnose_options.refit_profile = !flags.keep_profile;
     diagnose_options.refit_range_noise = flags.refit_noise;
+    diagnose_options.datasheet_noise = datasheet_range_noise(profile.prod_line);
     diagnosis = lidartwin::diagnose(table, chain, misfit, diagnose_options);
     report["diagnosis"] = diagnosis_json(*diagnosis);
     steps.done();
@@ -161,6 +162,7 @@ int run_compare(const CompareFlags& flags) {
       std::printf("  %s (%s): delta BIC %+.1f, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
                   c.p_value, params.c_str());
     }
+    for (const Replacement& r : diagnosis->replace) std::printf("  replace: %s\n", r.sentence.c_str());
     for (const Candidate& c : diagnosis->selected) std::printf("  selected: %s\n", c.effect.c_str());
     for (const SharedMisfit& shared : diagnosis->shared) std::printf("  %s\n", shared.sentence.c_str());
     for (const NotSelected& n : diagnosis->not_selected) std::printf("  %s\n", n.sentence.c_str());
@@ -203,7 +205,8 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   sub->add_flag("--diagnose", flags->diagnose,
                 "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing");
   sub->add_flag("--keep-profile", flags->keep_profile,
-                "with --diagnose: do not refit the profile's own effects' parameters (parameter misfit) first")
+                "with --diagnose: keep the profile's own effects as they are (neither refit their parameters nor "
+                "replace its noise law)")
       ->needs("--diagnose");
   sub->add_flag("--refit-noise", flags->refit_noise,
                 "with --diagnose: refit the profile's range noise sigma(r) (its knots' sigmas) among its own effects")

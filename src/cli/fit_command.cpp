@@ -1,11 +1,13 @@
-// `lidartwin fit`: a new profile with effects added to the measured capture's profile and their
-// parameters fitted by maximum likelihood on it (the diagnosis' fits), written as a profile file
-// that record, serve and compare read as they are. The fitted values and their 95 % intervals go
-// into the profile's "fit" section, next to the effects.
+// `lidartwin fit`: a new profile with effects added to the measured capture's profile, or put in
+// place of its own (its noise law replaced by another form), their parameters fitted by maximum
+// likelihood on it (the diagnosis' fits), written as a profile file that record, serve and compare
+// read as they are. The fitted values and their 95 % intervals go into the profile's "fit"
+// section, next to the effects.
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -26,78 +28,131 @@ struct FitFlags {
   MeasuredFlags measured;
   std::string profile;
   std::vector<std::string> add;
+  std::vector<std::string> replace;  // OLD=NEW
   bool automatic = false;
+  bool refit_noise = false;
   std::string out;
   double alpha = 0.01;
 };
 
-nlohmann::json fit_notes(const std::vector<Candidate>& fits, const Measured& measured, size_t pixels) {
+// A fitted effect in the "fit" section: its delta BIC, p-value (where nested) and parameters.
+nlohmann::json note(const Candidate& c) {
+  nlohmann::json params = nlohmann::json::object();
+  for (const FittedParameter& p : c.params) params[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+  return {{"effect", c.effect},
+          {"catalogue", c.catalogue},
+          {"delta_bic", c.delta_bic},
+          {"p_value", c.p_value},
+          {"params", params}};
+}
+
+struct Fitted {
+  EffectChain chain;
+  std::vector<Candidate> refits;  // the profile's own effects refitted (radiometry, noise)
+  std::vector<Replacement> replaced;
+  std::vector<Candidate> added;
+};
+
+nlohmann::json fit_notes(const Fitted& fitted, const Measured& measured, size_t pixels) {
   nlohmann::json effects = nlohmann::json::array();
-  for (const Candidate& c : fits) {
-    nlohmann::json params = nlohmann::json::object();
-    for (const FittedParameter& p : c.params) params[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
-    effects.push_back({{"effect", c.effect},
-                       {"catalogue", c.catalogue},
-                       {"delta_bic", c.delta_bic},
-                       {"p_value", c.p_value},
-                       {"params", params}});
+  for (const Candidate& c : fitted.refits) effects.push_back(note(c));
+  for (const Replacement& r : fitted.replaced) {
+    nlohmann::json entry = note(r.with);
+    entry.erase("p_value");  // not nested in the law it replaces: BIC alone
+    entry["replaces"] = r.effect;
+    effects.push_back(entry);
   }
-  return {{"comment", "written by lidartwin fit: effects added and fitted by maximum likelihood"},
+  for (const Candidate& c : fitted.added) effects.push_back(note(c));
+  return {{"comment", "written by lidartwin fit: effects added or replaced and fitted by maximum likelihood"},
           {"capture", measured.inputs["capture"]},
           {"frames", measured.inputs["frames"]},
           {"pixels", pixels},
           {"effects", effects}};
 }
 
+// --replace OLD=NEW, as pairs.
+std::vector<std::pair<std::string, std::string>> replacements(const std::vector<std::string>& flags) {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const std::string& flag : flags) {
+    const size_t eq = flag.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == flag.size()) {
+      throw InputError("--replace " + flag + ": expected EFFECT=REPLACEMENT, e.g. range_noise_linear=signal_precision");
+    }
+    out.emplace_back(flag.substr(0, eq), flag.substr(eq + 1));
+  }
+  return out;
+}
+
+// --auto: what the diagnosis selects, replacements included, on the profile with its refits.
+Fitted fit_automatically(const Measured& measured, const EffectChain& chain, const DiagnoseOptions& options) {
+  MisfitOptions misfit_options;
+  misfit_options.alpha = options.alpha;
+  const Misfit misfit =
+      find_misfit(measured.table, score_pixels(measured.table), measured.capture.frames.size(), misfit_options);
+  const Diagnosis diagnosis = diagnose(measured.table, chain, misfit, options);
+  Fitted out{diagnosis.fitted, {}, diagnosis.replace, diagnosis.selected};
+  for (const ParameterMisfit& m : diagnosis.parameter_misfit) out.refits.push_back(m.refit);
+  return out;
+}
+
+// --replace, --refit-noise and --add, in that order after the radiometry (fit_profile).
+Fitted fit_as_asked(const FitFlags& flags, const Measured& measured, const EffectChain& chain,
+                    const DiagnoseOptions& options) {
+  FitPlan plan;
+  plan.replace = replacements(flags.replace);
+  plan.refit_noise = flags.refit_noise;
+  for (const std::string& name : flags.add) plan.add.push_back({{"name", name}});
+  FittedProfile fitted = fit_profile(measured.table, chain, plan, options);
+  Fitted out{fitted.chain, {}, std::move(fitted.replaced), std::move(fitted.added)};
+  for (const ParameterMisfit& m : fitted.refits) out.refits.push_back(m.refit);
+  return out;
+}
+
+void print_fit(const Candidate& c, const std::string& replaces) {
+  if (replaces.empty()) {
+    std::printf("%s (%s): delta BIC %+.1f\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic);
+  } else {
+    std::printf("%s (%s) in place of %s: delta BIC %+.1f\n", c.effect.c_str(), c.catalogue.c_str(), replaces.c_str(),
+                c.delta_bic);
+  }
+  for (const FittedParameter& p : c.params) {
+    std::printf("  %s = %.6g  (95 %%: %.6g .. %.6g)\n", p.name.c_str(), p.value, p.ci95_lo, p.ci95_hi);
+  }
+}
+
 int run_fit(const FitFlags& flags) {
-  if (flags.add.empty() == !flags.automatic) throw InputError("fit: give --add EFFECT (one or more) or --auto");
+  if (!flags.automatic && flags.add.empty() && flags.replace.empty() && !flags.refit_noise) {
+    throw InputError("fit: give --add EFFECT, --replace EFFECT=REPLACEMENT or --refit-noise, or --auto");
+  }
   const SensorProfile profile = load_profile(flags.profile);
   const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   Steps steps;
   const Measured measured = measure(flags.measured, profile, chain, steps);
   DiagnoseOptions options;
   options.alpha = flags.alpha;
-  std::vector<Candidate> fits, noted;
-  EffectChain base = chain;
+  options.refit_range_noise = flags.refit_noise;
+  options.datasheet_noise = datasheet_range_noise(profile.prod_line);
   steps.start("fitting");
-  if (flags.automatic) {
-    MisfitOptions misfit_options;
-    misfit_options.alpha = flags.alpha;
-    const Misfit misfit =
-        find_misfit(measured.table, score_pixels(measured.table), measured.capture.frames.size(), misfit_options);
-    const Diagnosis diagnosis = diagnose(measured.table, chain, misfit, options);
-    fits = diagnosis.selected;
-    base = diagnosis.refitted;  // the profile's own effects whose parameters misfit, refitted
-    for (const ParameterMisfit& m : diagnosis.parameter_misfit) noted.push_back(m.refit);
-  } else {
-    // The capture's own radiometric constants first, as the diagnosis does: the added effects are
-    // fitted against the expected signal they make.
-    if (std::optional<ParameterMisfit> m = refit_radiometry(measured.table, chain, options)) {
-      base = with_refit(chain, *m);
-      noted.push_back(m->refit);
-    }
-    fits = fit_effects(measured.table, base, flags.add, options);
-  }
+  const Fitted fitted =
+      flags.automatic ? fit_automatically(measured, chain, options) : fit_as_asked(flags, measured, chain, options);
   steps.done();
-  noted.insert(noted.end(), fits.begin(), fits.end());
   // The profile file as it is, with the fitted chain and the notes.
   std::ifstream in(profile_file(flags.profile));
   nlohmann::json document = nlohmann::json::parse(in);
-  document["effects"] = chain_with(base, fits).to_json();
-  document["fit"] = fit_notes(noted, measured, measured.table.size());
+  document["effects"] = fitted.chain.to_json();
+  document["fit"] = fit_notes(fitted, measured, measured.table.size());
   if (fs::path(flags.out).has_parent_path()) fs::create_directories(fs::path(flags.out).parent_path());
   std::ofstream out(flags.out);
   out << document.dump(2) << "\n";
   if (!out) throw InputError("--out " + flags.out + ": write failed");
   out.close();
   load_profile(flags.out);  // what was written reads back as a profile
-  if (fits.empty()) std::printf("no effect added: none improves BIC significantly (--auto)\n");
-  for (const Candidate& c : fits) {
-    std::printf("%s (%s): delta BIC %+.1f\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic);
-    for (const FittedParameter& p : c.params) {
-      std::printf("  %s = %.6g  (95 %%: %.6g .. %.6g)\n", p.name.c_str(), p.value, p.ci95_lo, p.ci95_hi);
-    }
+  if (fitted.added.empty() && fitted.replaced.empty() && flags.automatic) {
+    std::printf("no effect added or replaced: none improves BIC significantly (--auto)\n");
   }
+  for (const Candidate& c : fitted.refits) std::printf("refitted %s: delta BIC %+.1f\n", c.effect.c_str(), c.delta_bic);
+  for (const Replacement& r : fitted.replaced) print_fit(r.with, r.effect);
+  for (const Candidate& c : fitted.added) print_fit(c, "");
   std::printf("wrote %s\n", flags.out.c_str());
   return 0;
 }
@@ -109,8 +164,18 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
   add_measured_options(sub, flags->measured);
   sub->add_option("--profile", flags->profile, "the profile to extend (name or .json)")->required();
   auto* add = sub->add_option("--add", flags->add, "effects to add and fit, in order (registry names)");
-  sub->add_flag("--auto", flags->automatic, "add what the diagnosis selects, one at a time while BIC improves")
-      ->excludes(add);
+  auto* replace =
+      sub->add_option("--replace", flags->replace,
+                      "EFFECT=REPLACEMENT: the profile's range noise law replaced by another form, fitted in its place "
+                      "(range_noise_linear=signal_precision, range_noise_linear=range_noise_piecewise, "
+                      "range_noise_piecewise=range_noise_linear, range_noise_piecewise=signal_precision)");
+  sub->add_flag("--refit-noise", flags->refit_noise,
+                "refit the profile's range noise sigma(r) (its knots' sigmas), kept where significant; with --auto, "
+                "as compare --diagnose --refit-noise");
+  sub->add_flag("--auto", flags->automatic,
+                "add (and replace) what the diagnosis selects, one at a time while BIC improves")
+      ->excludes(add)
+      ->excludes(replace);
   sub->add_option("--out", flags->out, "the new profile (.json)")->required();
   sub->add_option("--alpha", flags->alpha, "significance level of --auto's tests")
       ->check(CLI::Range(1e-12, 0.5))

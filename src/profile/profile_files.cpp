@@ -66,4 +66,25 @@ SensorProfile load_profile(std::string_view name_or_path) {
   return parse_profile(read_json(path), path.string());
 }
 
+std::optional<nlohmann::json> datasheet_range_noise(std::string_view prod_line) {
+  // The family: the first two fields of the product line ("OS-1").
+  const auto family = [](std::string_view line) {
+    const size_t second = line.find('-', line.find('-') + 1);
+    return line.substr(0, second);
+  };
+  for (const std::string& name : available_profiles()) {
+    SensorProfile profile;
+    try {
+      profile = load_profile(name);
+    } catch (const InputError&) {  // a broken file in $LIDARTWIN_PROFILES is not this search's to report
+      continue;
+    }
+    if (family(profile.prod_line) != family(prod_line)) continue;
+    for (const nlohmann::json& effect : profile.effects) {
+      if (effect.value("name", "") == "range_noise_piecewise") return effect;
+    }
+  }
+  return std::nullopt;
+}
+
 }  // namespace lidartwin

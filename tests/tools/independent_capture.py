@@ -68,7 +68,8 @@ Hidden effects, written from lidar-physics.md's models alone (all off by default
   E5  --detect-threshold T --detect-width W
                               a return is reported with probability 1 / (1 + exp(-(ln S - ln T) / W));
                               otherwise range, signal and reflectivity are 0
-The true values go to truth.json beside the capture (per-beam offsets and scales, radiometry included).
+The true values go to truth.json beside the capture (per-beam offsets and scales, radiometry and the
+range noise's sigma0 and slope included).
 
 Run (numpy is needed; use the system interpreter):
   /usr/bin/python3 tests/tools/independent_capture.py OUT_DIR [--frames N] [--seed S]
@@ -616,7 +617,8 @@ def main():
     rng = np.random.default_rng(args.seed)
     hidden = Hidden(args)
     with open(os.path.join(args.out_dir, "truth.json"), "w") as f:
-        truth = {**hidden.truth(), "radiometry": Radiometry.truth()}
+        truth = {**hidden.truth(), "radiometry": Radiometry.truth(),
+                 "range_noise": {"sigma0_m": args.sigma0, "slope": args.slope}}
         if args.wall_reflectivity is not None:
             truth["wall_reflectivity"] = dict(zip(WALLS, args.wall_reflectivity))
         if motion.moving or np.any(motion.start != 0):

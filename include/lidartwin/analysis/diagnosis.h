@@ -3,7 +3,9 @@
 // is added to its chain in turn, its parameters fitted by maximum likelihood (NLopt) on the pixel
 // table, and the candidates ranked by the improvement in BIC, with a likelihood-ratio test and the
 // failing regions each one repairs. Forward stepwise: the best is kept and the others refitted
-// given it while the improvement stays significant, so two hidden effects are both found.
+// given it while the improvement stays significant, so two hidden effects are both found. The
+// profile's range noise law may instead have the wrong form: laws of the other forms are tried in
+// its place in the same rounds, and compared with the added effects by BIC.
 #include <optional>
 #include <string>
 #include <utility>
@@ -70,9 +72,29 @@ struct SharedMisfit {
   std::string sentence;
 };
 
+// One of the profile's own effects whose form is wrong (issue 23): its range noise law (E1) replaced
+// by a law of another form (the datasheet table, the linear law, or E2's signal-driven sigma alone),
+// fitted in its place. Not nested in the profile's law, so judged by BIC alone (lidar-physics.md
+// 3.3): `with.delta_bic` counts the replacement's free parameters less those of `effect` that were
+// fitted (parameters_removed: the law's sigmas, where --refit-noise refitted them), and it is kept
+// when it exceeds min_delta_bic and the round's best additive candidate's.
+struct Replacement {
+  std::string effect;     // the profile's effect replaced (registry name)
+  std::string catalogue;  // its lidar-physics.md id
+  size_t index = 0;       // its place in the chain, which the replacement takes
+  Candidate with;         // p_value unused (not nested)
+  size_t parameters_removed = 0;
+  std::string additive;  // the round's best additive candidate ("" if none), and its delta BIC
+  double additive_delta_bic = 0.0;
+  std::string sentence;
+};
+
 struct Diagnosis {
-  std::string verdict;                            // "no missing effect" or "missing effect"
+  // "no missing effect", "missing effect" (selected or unexplained), or "wrong effect form" (a
+  // replacement and nothing missing)
+  std::string verdict;
   std::vector<ParameterMisfit> parameter_misfit;  // the profile's own effects refitted, in chain order
+  std::vector<Replacement> replace;               // the profile's own effects replaced (at most its noise law)
   std::vector<Candidate> ranked;                  // first round, best first
   std::vector<Candidate> selected;                // kept, in the order added
   std::vector<NotSelected> not_selected;
@@ -80,7 +102,8 @@ struct Diagnosis {
   // What still fails with the selected effects added, and the features it follows.
   std::vector<UnexplainedMisfit> unexplained;
   size_t pixels = 0;     // pixels the fits used
-  EffectChain refitted;  // the profile's chain with the refits (selected not added)
+  EffectChain refitted;  // the profile's chain with the refits (neither replaced nor selected applied)
+  EffectChain fitted;    // with the replacements and the selected effects too, jointly refitted
 };
 
 struct DiagnoseOptions {
@@ -94,6 +117,10 @@ struct DiagnoseOptions {
   // With refit_profile: the range noise's sigmas too (compare --refit-noise). Off by default, as
   // sigma(r) can take up part of a missing spread effect along range.
   bool refit_range_noise = false;
+  // The product line's datasheet table (a range_noise_piecewise effect: datasheet_range_noise),
+  // the form tried in place of a linear law; none: that form is not tried. With refit_profile,
+  // the other forms (E2 alone, the linear law in place of a table) are always tried.
+  std::optional<nlohmann::json> datasheet_noise;
 };
 
 // chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).
@@ -128,5 +155,26 @@ std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& c
                                    const std::vector<nlohmann::json>& effects, const DiagnoseOptions& options = {});
 // The chain with the fitted effects inserted (before its range limits), in order.
 EffectChain chain_with(const EffectChain& chain, const std::vector<Candidate>& added);
+
+// What `fit` changes in a profile, in this order after refitting its radiometry: its own effects
+// replaced by another form ({effect, replacement}: `fit --replace range_noise_linear=signal_precision`;
+// the forms the diagnosis tries), its range noise's sigmas refitted (--refit-noise; kept where
+// significant, as the diagnosis' parameter misfit), effects added (--add). The replacements and
+// added effects are then refitted jointly.
+struct FitPlan {
+  std::vector<std::pair<std::string, std::string>> replace;
+  bool refit_noise = false;
+  std::vector<nlohmann::json> add;  // each as a profile lists it, or {"name": ...}
+};
+struct FittedProfile {
+  EffectChain chain;
+  std::vector<ParameterMisfit> refits;  // radiometry, range noise
+  std::vector<Replacement> replaced;
+  std::vector<Candidate> added;
+};
+// Throws InputError for an effect the chain does not have or a form that cannot replace it, and
+// as fit_effects does for the added ones.
+FittedProfile fit_profile(const PixelTable& table, const EffectChain& chain, const FitPlan& plan,
+                          const DiagnoseOptions& options = {});
 
 }  // namespace lidartwin

@@ -1,6 +1,7 @@
 #pragma once
 // A product's description: beams, ranges, lidar modes and the effect chain (profiles/*.json).
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -47,5 +48,9 @@ std::filesystem::path profile_file(std::string_view name_or_path);
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source);
 std::filesystem::path profiles_dir();  // <source>/profiles, or $LIDARTWIN_PROFILES
 std::vector<std::string> available_profiles();
+// The datasheet's range-noise table (Table I) of a product line's family ("OS-1-32" -> OS-1): the
+// range_noise_piecewise effect of the first available profile of that family that has one (the
+// datasheet profiles; the paper profiles have the linear law). None if no profile has one.
+std::optional<nlohmann::json> datasheet_range_noise(std::string_view prod_line);
 
 }  // namespace lidartwin

@@ -1,0 +1,99 @@
+// report.json's "diagnosis" (docs/compare-report.md).
+#include "lidartwin/analysis/diagnosis.h"
+
+namespace lidartwin {
+namespace {
+
+nlohmann::json params_json(const std::vector<FittedParameter>& params) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const FittedParameter& p : params) out[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+  return out;
+}
+
+nlohmann::json candidate_json(const Candidate& c) {
+  return {{"effect", c.effect},       {"catalogue", c.catalogue}, {"delta_bic", c.delta_bic},
+          {"delta_nll", c.delta_nll}, {"p_value", c.p_value},     {"params", params_json(c.params)},
+          {"repairs", c.repairs}};
+}
+
+// The replacement with its own parameters, and how it compares with the best additive candidate
+// of its round (no p-value: the two laws are not nested).
+nlohmann::json replacement_json(const Replacement& r) {
+  nlohmann::json with = candidate_json(r.with);
+  with.erase("p_value");
+  with.erase("repairs");
+  return {
+      {"effect", r.effect},
+      {"catalogue", r.catalogue},
+      {"index", r.index},
+      {"replacement", with},
+      {"delta_bic", r.with.delta_bic},
+      {"delta_nll", r.with.delta_nll},
+      {"parameters", {{"added", r.with.params.size()}, {"removed", r.parameters_removed}}},
+      {"additive", r.additive.empty() ? nlohmann::json(nullptr)
+                                      : nlohmann::json{{"effect", r.additive}, {"delta_bic", r.additive_delta_bic}}},
+      {"delta_bic_vs_additive", r.with.delta_bic - r.additive_delta_bic},
+      {"repairs", r.with.repairs},
+      {"sentence", r.sentence}};
+}
+
+}  // namespace
+
+nlohmann::json diagnosis_json(const Diagnosis& d) {
+  nlohmann::json ranked = nlohmann::json::array(), selected = nlohmann::json::array();
+  for (const Candidate& c : d.ranked) ranked.push_back(candidate_json(c));
+  for (const Candidate& c : d.selected) selected.push_back(candidate_json(c));
+  nlohmann::json refits = nlohmann::json::array();
+  for (const ParameterMisfit& m : d.parameter_misfit) {
+    nlohmann::json entry = candidate_json(m.refit);
+    entry.erase("repairs");
+    nlohmann::json old_values = nlohmann::json::object();
+    for (const auto& [name, value] : m.old_values) old_values[name] = value;
+    entry["old"] = old_values;
+    entry["index"] = m.index;
+    entry["channel"] = m.channel;
+    refits.push_back(entry);
+  }
+  nlohmann::json unexplained = nlohmann::json::array();
+  for (const UnexplainedMisfit& u : d.unexplained) {
+    nlohmann::json tests = nlohmann::json::array();
+    for (const FeatureTest& t : u.tests) {
+      tests.push_back({{"feature", t.feature}, {"chi2", t.chi2}, {"dof", t.dof}, {"p_value", t.p_value}});
+    }
+    unexplained.push_back({{"quantity", u.quantity},
+                           {"features", u.features},
+                           {"not_features", u.not_features},
+                           {"size", u.size},
+                           {"unit", u.unit},
+                           {"regions", u.regions},
+                           {"sentence", u.sentence},
+                           {"tests", tests}});
+  }
+  nlohmann::json not_selected = nlohmann::json::array();
+  for (const NotSelected& n : d.not_selected) {
+    not_selected.push_back(
+        {{"effect", n.effect},
+         {"delta_bic", n.delta_bic},
+         {"pattern", {{"quantity", n.quantity}, {"feature", n.feature}, {"delta_bic", n.pattern_delta_bic}}},
+         {"delta_bic_given_pattern", n.delta_bic_given_pattern},
+         {"pattern_delta_bic_given_effect", n.pattern_delta_bic_given_effect},
+         {"sentence", n.sentence}});
+  }
+  nlohmann::json shared = nlohmann::json::array();
+  for (const SharedMisfit& s : d.shared) {
+    shared.push_back({{"effect", s.effect},
+                      {"with", s.with},
+                      {"delta_bic_alone", s.delta_bic_alone},
+                      {"delta_bic_given", s.delta_bic_given},
+                      {"with_delta_bic_given", s.with_delta_bic_given},
+                      {"repairs", s.repairs},
+                      {"sentence", s.sentence}});
+  }
+  nlohmann::json replace = nlohmann::json::array();
+  for (const Replacement& r : d.replace) replace.push_back(replacement_json(r));
+  return {{"verdict", d.verdict},       {"not_selected", not_selected}, {"shared", shared},
+          {"ranked", ranked},           {"selected", selected},         {"pixels", d.pixels},
+          {"unexplained", unexplained}, {"parameter_misfit", refits},   {"replace", replace}};
+}
+
+}  // namespace lidartwin

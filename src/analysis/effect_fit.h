@@ -1,0 +1,90 @@
+#pragma once
+// What the diagnosis, `fit` and the noise-law replacements share: an effect's free parameters fitted
+// by maximum likelihood on the pixel table (lidar-physics.md 3.5), wherever the effect sits in the
+// chain (a candidate added, a profile's own effect refitted in place, or put in another's place).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lidartwin/analysis/diagnosis.h"
+#include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/analysis/unexplained.h"
+#include "lidartwin/effects/effect_chain.h"
+
+namespace lidartwin::analysis_detail {
+
+// A parameter a fit moves: its starting value and the scale of a first step (NLopt's BOBYQA works
+// in these units). `tied`: other parameters that take the same value (a datasheet table's plateau
+// is two knots with one sigma).
+struct FreeParameter {
+  std::string name;
+  double start;
+  double step;
+  std::vector<std::string> tied = {};
+};
+struct CandidateSpec {
+  std::string effect;
+  std::vector<FreeParameter> free;
+  nlohmann::json start = nullptr;  // the effect as it starts (fixed parameters included); null: defaults
+};
+
+// What the search tries: each library effect with the parameters it fits.
+const std::vector<CandidateSpec>& candidate_specs();
+
+// A parameter's place in its effect's JSON: a key, or a path below it ("points_m/2/1").
+nlohmann::json::json_pointer pointer(const std::string& name);
+
+// What a profile's own effect refits in place (parameter misfit): a candidate's free parameters,
+// or, with range_noise, the range noise's sigmas (E1).
+std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise);
+
+// The fitted pixels: an even subsample of up to max_pixels of those that meet a surface.
+std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels);
+
+// Total NLL of the rows under a chain (the same likelihood compare scores with).
+// adjust: a misfit pattern's per-bin values applied on top of the chain's predictions.
+double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
+                 const PatternAdjustment* adjust = nullptr);
+
+// The chain with `effect` inserted before its range limits (what limits the window must see the
+// shifted range), or appended.
+EffectChain with_candidate(const EffectChain& chain, const nlohmann::json& effect);
+
+// Where a fitted effect goes: a candidate joins the chain before its range limits; a profile's own
+// effect being refitted (`index`) keeps its place, its other parameters and its random streams; a
+// replacement (`index` and `replaces`) takes the place of the effect there, starting from its spec.
+struct Placement {
+  const EffectChain& base;
+  std::optional<size_t> index;  // none: a candidate
+  bool replaces = false;
+  EffectChain chain_with(const nlohmann::json& effect) const;
+  // The effect as it starts: the spec's (defaults, or its start), or the profile's own.
+  nlohmann::json start(const CandidateSpec& spec) const;
+  bool refits() const { return index && !replaces; }
+};
+
+// The likelihood-ratio test, BIC and catalogue id of a candidate with k free parameters.
+void score_candidate(Candidate& c, double base_nll, double nll, double k, size_t n);
+
+// The spec's free parameters fitted at `place` (NLopt BOBYQA, restarted while it still gains), from
+// the chain's NLL base_nll; scored with k = its free parameters, 95 % intervals from the curvature.
+Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place, double base_nll,
+              const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr);
+
+// Each of `fitted` (effects in `chain`, found by name) refitted in its place given all the others,
+// in turn, until a pass gains less than 0.1 nats; chain, nll and the candidates are updated.
+void refit_jointly(const PixelTable& t, const std::vector<size_t>& rows, EffectChain& chain, double& nll,
+                   std::vector<Candidate*> fitted, const std::vector<CandidateSpec>& specs);
+
+// A profile's own effect (at `index`) refitted in place from its values, kept (returned) where the
+// refit is very strong evidence (delta BIC > options.min_delta_bic) and significant at `alpha`;
+// chain and nll then updated.
+std::optional<ParameterMisfit> refit_in_place(const PixelTable& t, const std::vector<size_t>& rows, EffectChain& chain,
+                                              double& nll, size_t index, const CandidateSpec& spec,
+                                              const DiagnoseOptions& options, double alpha);
+
+// An effect the search does not list (one a user registered): every parameter that is not fixed is
+// fitted, from the value `effect` gives it (or its default), in steps of a tenth of its bounds.
+CandidateSpec spec_of(const nlohmann::json& effect);
+
+}  // namespace lidartwin::analysis_detail
