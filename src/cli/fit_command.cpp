@@ -12,6 +12,7 @@
 
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
+#include "cli/unit_twin.h"
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/error.h"
@@ -51,7 +52,9 @@ nlohmann::json fit_notes(const std::vector<Candidate>& fits, const Measured& mea
 
 int run_fit(const FitFlags& flags) {
   if (flags.add.empty() == !flags.automatic) throw InputError("fit: give --add EFFECT (one or more) or --auto");
-  const SensorProfile profile = load_profile(flags.profile);
+  // A unit's metadata gives its twin: the written profile keeps the unit's beam intrinsics.
+  const SensorChoice sensor = load_sensor(flags.profile);
+  const SensorProfile& profile = sensor.profile;
   const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   Steps steps;
   const Measured measured = measure(flags.measured, profile, chain, steps);
@@ -80,9 +83,8 @@ int run_fit(const FitFlags& flags) {
   }
   steps.done();
   noted.insert(noted.end(), fits.begin(), fits.end());
-  // The profile file as it is, with the fitted chain and the notes.
-  std::ifstream in(profile_file(flags.profile));
-  nlohmann::json document = nlohmann::json::parse(in);
+  // The profile file as it is (a twin's as made from its unit), with the fitted chain and the notes.
+  nlohmann::json document = sensor.document;
   document["effects"] = chain_with(base, fits).to_json();
   document["fit"] = fit_notes(noted, measured, measured.table.size());
   if (fs::path(flags.out).has_parent_path()) fs::create_directories(fs::path(flags.out).parent_path());
@@ -107,7 +109,9 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
   CLI::App* sub =
       app.add_subcommand("fit", "Add effects to a profile and fit them to a measured capture: writes a new profile");
   add_measured_options(sub, flags->measured, /*with_static=*/false);
-  sub->add_option("--profile", flags->profile, "the profile to extend (name or .json)")->required();
+  sub->add_option("--profile", flags->profile,
+                  "the profile to extend (name or .json), or a unit's metadata .json (its twin)")
+      ->required();
   auto* add = sub->add_option("--add", flags->add, "effects to add and fit, in order (registry names)");
   sub->add_flag("--auto", flags->automatic, "add what the diagnosis selects, one at a time while BIC improves")
       ->excludes(add);
