@@ -161,6 +161,26 @@ INSTANTIATE_TEST_SUITE_P(Samples, UnitTwin, ::testing::ValuesIn(sample_metadata_
                            return name;
                          });
 
+// Flags still choose: --serial-number and --lidar-mode over the unit's, the unit's packet profile
+// and firmware kept.
+TEST(UnitTwinFlags, OverrideTheUnitsSerialAndMode) {
+  const fs::path file = kSamples / "metadata" / "3_0_1_os-122246000293-128.json";
+  auto args = twin_args(file);
+  args.insert(args.end(), {"--serial-number", "987654321012", "--lidar-mode", "512x10"});
+  Daemon daemon("127.0.0.1", 0, args);
+  json served;
+  {
+    SensorHttp http(daemon.address(), daemon.http_port());
+    served = http.get_json("sensor/metadata");
+  }
+  const Metadata unit = load_metadata(file);
+  EXPECT_EQ(served.at("sensor_info").at("prod_sn"), "987654321012");
+  EXPECT_EQ(served.at("sensor_info").at("build_rev"), unit.sensor_info.build_rev);
+  EXPECT_EQ(served.at("config_params").at("lidar_mode"), "512x10");
+  EXPECT_EQ(served.at("lidar_data_format").at("udp_profile_lidar"), to_string(unit.format.udp_profile_lidar));
+  EXPECT_EQ(daemon.stop(), 0) << daemon.log();
+}
+
 // The packets name the unit too (4.3): a client that keeps only its sensor's packets, by prod_sn
 // and initialization_id as the SDK does, assembles complete scans from the twin.
 TEST(UnitTwinPackets, CarryTheUnitsSerialNumber) {
