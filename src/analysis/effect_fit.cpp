@@ -82,8 +82,7 @@ double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const Eff
   for (const size_t i : rows) {
     Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
     if (adjust) adjust->apply(i, p);
-    const RangeModel model = range_model(p, t.ideal_range_m[i], t.step_m[i], t.window_max_m[i]);
-    nll += pixel_nll(model, t.range_m[i]);
+    nll += pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
   }
   return nll;
 }

@@ -14,6 +14,7 @@
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
 #include "cli/plot_script.h"
+#include "cli/unit_twin.h"
 #include "lidartwin/analysis/compare_report.h"
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
@@ -48,7 +49,7 @@ int run_compare(const CompareFlags& flags) {
   std::vector<SensorProfile> profiles;
   std::vector<EffectChain> chains;
   for (const std::string& name : flags.profiles) {
-    profiles.push_back(load_profile(name));
+    profiles.push_back(load_sensor(name).profile);  // a unit's metadata: its twin's chain
     chains.push_back(EffectChain::from_json(profiles.back().effects, "profile " + profiles.back().name + ": /effects"));
   }
   Steps steps;

@@ -14,6 +14,7 @@
 
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
+#include "cli/unit_twin.h"
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/error.h"
@@ -124,7 +125,9 @@ int run_fit(const FitFlags& flags) {
   if (!flags.automatic && flags.add.empty() && flags.replace.empty() && !flags.refit_noise) {
     throw InputError("fit: give --add EFFECT, --replace EFFECT=REPLACEMENT or --refit-noise, or --auto");
   }
-  const SensorProfile profile = load_profile(flags.profile);
+  // A unit's metadata gives its twin: the written profile keeps the unit's beam intrinsics.
+  const SensorChoice sensor = load_sensor(flags.profile);
+  const SensorProfile& profile = sensor.profile;
   const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
   Steps steps;
   const Measured measured = measure(flags.measured, profile, chain, steps);
@@ -136,9 +139,8 @@ int run_fit(const FitFlags& flags) {
   const Fitted fitted =
       flags.automatic ? fit_automatically(measured, chain, options) : fit_as_asked(flags, measured, chain, options);
   steps.done();
-  // The profile file as it is, with the fitted chain and the notes.
-  std::ifstream in(profile_file(flags.profile));
-  nlohmann::json document = nlohmann::json::parse(in);
+  // The profile file as it is (a twin's as made from its unit), with the fitted chain and the notes.
+  nlohmann::json document = sensor.document;
   document["effects"] = fitted.chain.to_json();
   document["fit"] = fit_notes(fitted, measured, measured.table.size());
   if (fs::path(flags.out).has_parent_path()) fs::create_directories(fs::path(flags.out).parent_path());
@@ -162,7 +164,9 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
   CLI::App* sub =
       app.add_subcommand("fit", "Add effects to a profile and fit them to a measured capture: writes a new profile");
   add_measured_options(sub, flags->measured);
-  sub->add_option("--profile", flags->profile, "the profile to extend (name or .json)")->required();
+  sub->add_option("--profile", flags->profile,
+                  "the profile to extend (name or .json), or a unit's metadata .json (its twin)")
+      ->required();
   auto* add = sub->add_option("--add", flags->add, "effects to add and fit, in order (registry names)");
   auto* replace =
       sub->add_option("--replace", flags->replace,

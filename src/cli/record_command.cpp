@@ -15,6 +15,7 @@
 
 #include "cli/command.h"
 #include "cli/format_validators.h"
+#include "cli/unit_twin.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
 #include "lidartwin/packet/lidar_packet.h"
@@ -33,6 +34,11 @@ struct RecordFlags {
   std::string pose;
   std::string mode = "1024x10";
   std::string udp_profile = "RNG19_RFL8_SIG16_NIR16";
+  // Which of --mode, --udp-profile, --columns-per-packet were given: a twin takes its unit's value
+  // for the others.
+  bool mode_given = false;
+  bool udp_profile_given = false;
+  bool columns_given = false;
   int frames = 10;
   uint64_t seed = 0;
   std::string out;
@@ -71,27 +77,56 @@ std::unique_ptr<PoseSource> load_poses(const RecordFlags& flags) {
   return std::make_unique<TrajectoryPoses>(std::move(trajectory));
 }
 
-Metadata make_record_metadata(const RecordFlags& flags, const SensorProfile& profile) {
-  const auto& modes = profile.lidar_modes;
-  if (std::find(modes.begin(), modes.end(), flags.mode) == modes.end()) {
-    throw InputError(fmt::format("--mode {}: not a lidar mode of {}; expected one of {}", flags.mode, profile.name,
-                                 fmt::join(modes, ", ")));
-  }
+// The config recorded: the flags; for a twin of a unit, the unit's mode, profile and columns per
+// packet where no flag says otherwise.
+nlohmann::json record_config(const RecordFlags& flags, const SensorChoice& sensor) {
   nlohmann::json config = default_config_params();
   config["lidar_mode"] = flags.mode;
   config["udp_profile_lidar"] = flags.udp_profile;
   config["columns_per_packet"] = flags.columns_per_packet;
+  if (!sensor.unit) return config;
+  nlohmann::json unit = unit_start_config(*sensor.unit);
+  if (flags.mode_given) unit.erase("lidar_mode");
+  if (flags.udp_profile_given) unit.erase("udp_profile_lidar");
+  if (flags.columns_given) unit.erase("columns_per_packet");
+  config.update(unit);
+  return config;
+}
+
+// Who recorded: a twin is its unit (serial, firmware, and the unit file's initialization_id, so
+// that the capture decodes with the unit's own metadata file, as a capture of that session would).
+SensorInfo record_sensor_info(const RecordFlags& flags, const SensorChoice& sensor) {
   SensorInfo info;
-  info.prod_line = profile.prod_line;
-  info.prod_pn = profile.prod_pn;
+  info.prod_line = sensor.profile.prod_line;
+  info.prod_pn = sensor.profile.prod_pn;
   info.prod_sn = "992200000001";  // fixed: captures of one profile look like one unit
   info.image_rev = "ousteros-image-prod-bootes-v3.1.0+20240426041747";
   info.build_rev = "v3.1.0";
   info.build_date = "2024-04-26T02:34:31Z";
   // 24 bits, never 0, a pure function of the seed (6.2).
   info.initialization_id = static_cast<uint32_t>(rng_detail::mix64(flags.seed ^ 0x696E69745F6964ULL) % 0xFFFFFFu) + 1;
+  if (sensor.unit) {
+    const SensorInfo& unit = sensor.unit->sensor_info;
+    if (!unit.prod_sn.empty()) info.prod_sn = unit.prod_sn;
+    if (!unit.image_rev.empty()) info.image_rev = unit.image_rev;
+    if (!unit.build_rev.empty()) info.build_rev = unit.build_rev;
+    if (!unit.build_date.empty()) info.build_date = unit.build_date;
+    if (unit.initialization_id != 0) info.initialization_id = unit.initialization_id;
+  }
+  return info;
+}
+
+Metadata make_record_metadata(const RecordFlags& flags, const SensorChoice& sensor) {
+  const SensorProfile& profile = sensor.profile;
+  const nlohmann::json config = record_config(flags, sensor);
+  const std::string mode = config.at("lidar_mode").get<std::string>();
+  const auto& modes = profile.lidar_modes;
+  if (std::find(modes.begin(), modes.end(), mode) == modes.end()) {
+    throw InputError(fmt::format("--mode {}: not a lidar mode of {}; expected one of {}", mode, profile.name,
+                                 fmt::join(modes, ", ")));
+  }
   try {
-    Metadata metadata = make_metadata(info, profile.beams, config);
+    Metadata metadata = make_metadata(record_sensor_info(flags, sensor), profile.beams, config);
     const PacketFormat validated(metadata.format);  // e.g. a packet larger than a datagram
     return metadata;
   } catch (const InputError& e) {
@@ -128,8 +163,9 @@ static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler
 extern "C" void request_stop(int) { stop_requested.store(true); }
 
 int run_record(const RecordFlags& flags) {
-  const SensorProfile profile = load_profile(flags.profile);
-  const Metadata metadata = make_record_metadata(flags, profile);
+  const SensorChoice sensor = load_sensor(flags.profile);
+  const SensorProfile& profile = sensor.profile;
+  const Metadata metadata = make_record_metadata(flags, sensor);
   const std::unique_ptr<PoseSource> poses = load_poses(flags);
   const Scene scene = Scene::load(flags.scene);
   EffectChain chain = flags.ideal ? ideal_chain(profile)
@@ -153,19 +189,22 @@ int run_record(const RecordFlags& flags) {
 void setup_record(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<RecordFlags>();
   CLI::App* sub = app.add_subcommand("record", "Render a capture offline: DIR/capture.pcap, metadata.json, poses.tum");
-  sub->add_option("--profile", flags->profile, "sensor profile name (e.g. os1-64) or .json path")->required();
+  sub->add_option("--profile", flags->profile,
+                  "sensor profile name (e.g. os1-64) or .json path, or a unit's metadata .json (a twin of that unit: "
+                  "its mode, udp profile and columns per packet unless given)")
+      ->required();
   sub->add_option("--scene", flags->scene, "glTF scene (.glb/.gltf)")->required()->check(CLI::ExistingFile);
   auto* trajectory =
       sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (loops if shorter than the capture)")
           ->check(CLI::ExistingFile);
   sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\" (world frame, Z up)")
       ->excludes(trajectory);
-  sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")
-      ->check(lidar_mode_validator())
-      ->capture_default_str();
-  sub->add_option("--udp-profile", flags->udp_profile, "udp_profile_lidar")
-      ->check(udp_profile_validator())
-      ->capture_default_str();
+  auto* mode = sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")
+                   ->check(lidar_mode_validator())
+                   ->capture_default_str();
+  auto* udp_profile = sub->add_option("--udp-profile", flags->udp_profile, "udp_profile_lidar")
+                          ->check(udp_profile_validator())
+                          ->capture_default_str();
   sub->add_option("--frames", flags->frames, "frames to record")
       ->check(CLI::Range(1, 10'000'000))
       ->capture_default_str();
@@ -174,16 +213,21 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--threads", flags->threads, "render threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
-  sub->add_option("--columns-per-packet", flags->columns_per_packet, "columns per lidar packet")
-      ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}))
-      ->capture_default_str();
+  auto* columns = sub->add_option("--columns-per-packet", flags->columns_per_packet, "columns per lidar packet")
+                      ->check(CLI::IsMember({1, 2, 4, 8, 16, 32, 64}))
+                      ->capture_default_str();
   sub->add_option("--uptime-s", flags->uptime_s,
                   "the sensor's time since power-on at frame 0: where its timestamps start (TIME_FROM_INTERNAL_OSC)")
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
   sub->add_flag("--ideal", flags->ideal,
                 "no noise or dropout: ideal ranges on the wire's step, within the profile's range, and an exact IMU");
-  sub->callback([&run, flags] { run = [flags] { return run_record(*flags); }; });
+  sub->callback([&run, flags, mode, udp_profile, columns] {
+    flags->mode_given = mode->count() > 0;
+    flags->udp_profile_given = udp_profile->count() > 0;
+    flags->columns_given = columns->count() > 0;
+    run = [flags] { return run_record(*flags); };
+  });
 }
 
 const RegisterCommand registered("record", setup_record);

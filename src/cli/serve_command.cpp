@@ -80,12 +80,13 @@ bool send_clock_can_be_realtime() {
   return can;
 }
 
-VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorProfile& profile,
+VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sensor,
                                 const std::array<uint8_t, 4>& address, int render_nice) {
+  const SensorProfile& profile = sensor.profile;
   VirtualSensorSetup setup;
-  setup.identity = make_identity(profile, address, flags.serial_number);
+  setup.identity = make_identity(sensor, address, flags.serial_number);
   setup.sensor.state_file = flags.state_file;
-  setup.sensor.config_overrides = config_overrides(flags);
+  setup.sensor.config_overrides = config_overrides(flags, sensor.unit);
   setup.http.address = flags.address;
   setup.http.port = flags.http_port;
   setup.streamer.source_address = address;
@@ -141,9 +142,10 @@ int64_t steady_now_ns() {
 int serve(const ServeFlags& flags) {
   setup_logging(flags.log_level);
   const auto address = parse_address(flags.address);
-  const SensorProfile profile = load_profile(flags.profile);
+  const SensorChoice sensor_choice = load_sensor(flags.profile);
+  const SensorProfile& profile = sensor_choice.profile;
   const bool realtime = send_clock_can_be_realtime();
-  VirtualSensorSetup setup = sensor_setup(flags, profile, address, realtime ? 0 : 5);
+  VirtualSensorSetup setup = sensor_setup(flags, sensor_choice, address, realtime ? 0 : 5);
   const auto scene_file = scene_path(flags);
   const Scene scene = Scene::load(scene_file);
   // The rig's time zero: a trajectory starts here, live poses are placed on it as they arrive.
@@ -151,6 +153,17 @@ int serve(const ServeFlags& flags) {
   const Motion motion = load_motion(flags, epoch_steady_ns);
   spdlog::info("serve: {} ({}) in {} ({} triangles), {}", profile.prod_line, profile.name, scene_file.string(),
                scene.triangle_count(), motion.description);
+  if (sensor_choice.unit) {
+    spdlog::info("serve: {}", profile.source);
+    const std::string& image_rev = sensor_choice.unit->sensor_info.image_rev;
+    const auto version = firmware_version(image_rev);
+    if (version && *version < std::pair{2, 4}) {
+      spdlog::warn(
+          "serve: the unit's firmware ({}) is older than 2.4: SDK 0.16 and later refuse it (\"Please upgrade "
+          "your sensor to FW 2.4 or later\"), as they would refuse the unit",
+          image_rev);
+    }
+  }
 
   asio::io_context io;
   // From here SIGINT/SIGTERM are caught (and held until run_daemon waits for them): a client or
@@ -167,7 +180,8 @@ int serve(const ServeFlags& flags) {
     // The streamer names --record itself; the sensor's config errors come from these flags.
     const std::string message = e.what();
     if (message.starts_with("--record")) throw;
-    throw InputError("--lidar-mode/--udp-profile/--state-file: " + message);
+    throw InputError((sensor_choice.unit ? "--profile " + flags.profile + " (the unit's config)/" : std::string()) +
+                     "--lidar-mode/--udp-profile/--state-file: " + message);
   }
   try {
     sensor->start();
@@ -186,7 +200,9 @@ int serve(const ServeFlags& flags) {
 void setup_serve(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<ServeFlags>();
   CLI::App* sub = app.add_subcommand("serve", "Run a virtual sensor: HTTP API and UDP lidar/IMU streams");
-  sub->add_option("--profile", flags->profile, "sensor profile name or .json path")->capture_default_str();
+  sub->add_option("--profile", flags->profile,
+                  "sensor profile name or .json path, or a unit's metadata .json (a twin of that unit)")
+      ->capture_default_str();
   sub->add_option("--scene", flags->scene, "glTF scene (default scenes/plant.glb)");
   auto* trajectory = sub->add_option("--trajectory", flags->trajectory,
                                      "TUM trajectory (default scenes/plant_inspection.tum with the default scene)");

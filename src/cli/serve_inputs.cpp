@@ -106,8 +106,9 @@ std::array<uint8_t, 4> parse_address(const std::string& address) {
   return parsed.to_bytes();
 }
 
-SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address,
+SensorIdentity make_identity(const SensorChoice& sensor, const std::array<uint8_t, 4>& address,
                              const std::string& serial_number) {
+  const SensorProfile& profile = sensor.profile;
   SensorIdentity identity;
   identity.prod_line = profile.prod_line;
   identity.prod_pn = profile.prod_pn;
@@ -115,12 +116,25 @@ SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint
   identity.limits.lidar_modes = profile.lidar_modes;
   // 12 digits like a real serial; the last six from the address's last two bytes.
   const unsigned suffix = static_cast<unsigned>(address[2]) * 256u + address[3];
-  identity.prod_sn = serial_number.empty() ? "122201" + fmt::format("{:06}", suffix) : serial_number;
+  identity.prod_sn = "122201" + fmt::format("{:06}", suffix);
+  if (sensor.unit) {
+    // The unit's firmware as it reports it: clients choose their API by it (protocol doc 2.2), as
+    // they would talking to the unit.
+    const SensorInfo& unit = sensor.unit->sensor_info;
+    if (!unit.prod_sn.empty()) identity.prod_sn = unit.prod_sn;
+    if (!unit.image_rev.empty()) identity.image_rev = unit.image_rev;
+    if (!unit.build_rev.empty()) identity.build_rev = unit.build_rev;
+    if (!unit.build_date.empty()) identity.build_date = unit.build_date;
+  }
+  if (!serial_number.empty()) identity.prod_sn = serial_number;
   return identity;
 }
 
-nlohmann::json config_overrides(const ServeFlags& flags) {
+nlohmann::json config_overrides(const ServeFlags& flags, const std::optional<Metadata>& unit) {
   nlohmann::json overrides = nlohmann::json::object();
+  // A saved config is the user's later choice; the unit's file is where the twin starts without one.
+  const bool saved = !flags.state_file.empty() && std::filesystem::exists(flags.state_file);
+  if (unit && !saved) overrides = unit_start_config(*unit);
   if (!flags.lidar_mode.empty()) overrides["lidar_mode"] = flags.lidar_mode;
   if (!flags.udp_profile.empty()) overrides["udp_profile_lidar"] = flags.udp_profile;
   return overrides;

@@ -12,6 +12,7 @@
 
 #include <asio/ip/udp.hpp>
 
+#include "cli/unit_twin.h"
 #include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose.h"
 #include "lidartwin/profile/sensor_profile.h"
@@ -68,10 +69,12 @@ std::array<uint8_t, 4> parse_address(const std::string& address);
 
 // Who this virtual sensor is: the profile's product and beams; a serial number that differs per
 // address, so sensors side by side are told apart by clients (prod_sn in every packet, 4.3).
-// --serial-number, when given, replaces the derived one (containers all bind 0.0.0.0).
-SensorIdentity make_identity(const SensorProfile& profile, const std::array<uint8_t, 4>& address,
+// A twin of a unit has the unit's serial and firmware. --serial-number, when given, replaces
+// either serial (containers all bind 0.0.0.0).
+SensorIdentity make_identity(const SensorChoice& sensor, const std::array<uint8_t, 4>& address,
                              const std::string& serial_number = "");
-// Config keys the flags set over the saved/default config.
-nlohmann::json config_overrides(const ServeFlags& flags);
+// Config keys set over the saved/default config: a twin's start config (the unit's mode, profile
+// and columns per packet) unless a saved state file exists, then the flags.
+nlohmann::json config_overrides(const ServeFlags& flags, const std::optional<Metadata>& unit = std::nullopt);
 
 }  // namespace lidartwin::cli
