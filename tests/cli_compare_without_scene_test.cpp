@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "support/cli_run.h"
 #include "support/table_profile.h"
 
 namespace fs = std::filesystem;
@@ -26,20 +27,8 @@ std::string os1_64() {
   return path;
 }
 
-struct CliRun {
-  int code = -1;
-  std::string out;
-};
-
-CliRun lidartwin(const std::string& arguments) {
-  CliRun run;
-  FILE* pipe = popen((std::string(LIDARTWIN_BINARY) + " " + arguments + " 2>&1").c_str(), "r");
-  char buffer[4096];
-  while (size_t n = fread(buffer, 1, sizeof buffer, pipe)) run.out.append(buffer, n);
-  const int status = pclose(pipe);
-  run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
-}
+using lidartwin::test::CliRun;
+using lidartwin::test::run_cli;
 
 nlohmann::json read_json(const fs::path& path) {
   std::ifstream in(path);
@@ -66,15 +55,15 @@ std::vector<nlohmann::json> bins_of(const nlohmann::json& report, const std::str
 
 TEST(CompareStatic, TwoFramesOfAMotionlessSensorJudgeItsSpread) {
   const fs::path capture = temp("static_two_frames");
-  ASSERT_EQ(lidartwin("record --profile " + os1_64() + " --scene " + kSource + "/scenes/calibration_hall.glb" +
-                      " --trajectory " + kSource + "/scenes/calibration_hall_static.tum --frames 2 --seed 3 --out " +
-                      capture.string())
-                .code,
+  ASSERT_EQ(run_cli("record --profile " + os1_64() + " --scene " + kSource + "/scenes/calibration_hall.glb" +
+                    " --trajectory " + kSource + "/scenes/calibration_hall_static.tum --frames 2 --seed 3 --out " +
+                    capture.string())
+                .exit_code,
             0);
   const fs::path same = temp("static_two_frames_same");
-  const CliRun r = lidartwin("compare --static --capture " + capture.string() + " --profile " + os1_64() + " --out " +
-                             same.string() + " --no-plots");
-  ASSERT_EQ(r.code, 0) << r.out;
+  const CliRun r = run_cli("compare --static --capture " + capture.string() + " --profile " + os1_64() + " --out " +
+                           same.string() + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json report = read_json(same / "report.json");
   EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];
   const auto ranges = bins_of(report, "range", 2000);
@@ -83,9 +72,9 @@ TEST(CompareStatic, TwoFramesOfAMotionlessSensorJudgeItsSpread) {
 
   // The paper's linear law is 1.5-2 times the datasheet's sigma over the hall's ranges.
   const fs::path paper = temp("static_two_frames_paper");
-  ASSERT_EQ(lidartwin("compare --static --capture " + capture.string() + " --profile os1-32-paper --out " +
-                      paper.string() + " --no-plots")
-                .code,
+  ASSERT_EQ(run_cli("compare --static --capture " + capture.string() + " --profile os1-32-paper --out " +
+                    paper.string() + " --no-plots")
+                .exit_code,
             0);
   const nlohmann::json wrong = read_json(paper / "report.json");
   ASSERT_FALSE(wrong["failing"].empty());
@@ -99,10 +88,10 @@ TEST(CompareStatic, OneFrameIsRefusedAndSaysWhatItNeeds) {
   const std::string dir = kSource + "/tests/data/ouster-samples/";
   const fs::path out = temp("static_one_frame");
   const CliRun r =
-      lidartwin("compare --static --frames 1 --capture " + dir + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap" + " --metadata " +
-                dir + "OS-1-128_v2.3.0_1024x10.json --profile os1-128 --out " + out.string());
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.out.find("needs at least 2"), std::string::npos) << r.out;
+      run_cli("compare --static --frames 1 --capture " + dir + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap" + " --metadata " +
+              dir + "OS-1-128_v2.3.0_1024x10.json --profile os1-128 --out " + out.string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("needs at least 2"), std::string::npos) << r.output;
 }
 
 // A drive through the plant, 2.5 m/s and 10 deg/s, 1.7 m above the ground.
@@ -112,10 +101,10 @@ class CompareMap : public ::testing::Test {
     drive_ = temp("map_drive");
     fs::create_directories(drive_);
     std::ofstream(drive_ / "drive.tum") << "0 10 9 1.7 0 0 0 1\n3 17.5 9 1.7 0 0 0.0871557 0.9961947\n";
-    const CliRun r = lidartwin("record --profile " + os1_64() + " --scene " + kSource + "/scenes/plant.glb" +
-                               " --trajectory " + (drive_ / "drive.tum").string() +
-                               " --uptime-s 0 --frames 12 --seed 5 --out " + (drive_ / "capture").string());
-    ASSERT_EQ(r.code, 0) << r.out;
+    const CliRun r = run_cli("record --profile " + os1_64() + " --scene " + kSource + "/scenes/plant.glb" +
+                             " --trajectory " + (drive_ / "drive.tum").string() +
+                             " --uptime-s 0 --frames 12 --seed 5 --out " + (drive_ / "capture").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
   }
   static void TearDownTestSuite() { fs::remove_all(drive_); }
   static std::string capture_args() {
@@ -127,11 +116,10 @@ class CompareMap : public ::testing::Test {
 
 TEST_F(CompareMap, WithTheTrajectoryTheSpreadIsJudgedAsWithTheScene) {
   const fs::path out = drive_ / "map_truth";
-  const CliRun r =
-      lidartwin("compare --map" + capture_args() + " --pose " + (drive_ / "capture" / "poses.tum").string() +
-                " --profile " + os1_64() + " --out " + out.string() + " --no-plots");
-  ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("returns compared"), std::string::npos) << r.out;
+  const CliRun r = run_cli("compare --map" + capture_args() + " --pose " + (drive_ / "capture" / "poses.tum").string() +
+                           " --profile " + os1_64() + " --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("returns compared"), std::string::npos) << r.output;
   const nlohmann::json report = read_json(out / "report.json");
   const auto& map = report["inputs"]["map"];
   EXPECT_GT(map["compared"].get<size_t>(), 50000u);
@@ -150,9 +138,9 @@ TEST_F(CompareMap, WithTheTrajectoryTheSpreadIsJudgedAsWithTheScene) {
 
   // Against the paper's law (sigma 1.5-2 times the datasheet's) the spread fails, first.
   const fs::path paper = drive_ / "map_paper";
-  ASSERT_EQ(lidartwin("compare --map" + capture_args() + " --pose " + (drive_ / "capture" / "poses.tum").string() +
-                      " --profile os1-32-paper --out " + paper.string() + " --no-plots")
-                .code,
+  ASSERT_EQ(run_cli("compare --map" + capture_args() + " --pose " + (drive_ / "capture" / "poses.tum").string() +
+                    " --profile os1-32-paper --out " + paper.string() + " --no-plots")
+                .exit_code,
             0);
   const nlohmann::json wrong = read_json(paper / "report.json");
   ASSERT_FALSE(wrong["failing"].empty());
@@ -164,9 +152,9 @@ TEST_F(CompareMap, WithTheTrajectoryTheSpreadIsJudgedAsWithTheScene) {
 TEST_F(CompareMap, WithoutATrajectoryTheFramesAreRegisteredToEachOther) {
   const fs::path out = drive_ / "map_registered";
   const CliRun r =
-      lidartwin("compare --map" + capture_args() + " --profile " + os1_64() + " --out " + out.string() + " --no-plots");
-  ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("frames registered to each other"), std::string::npos) << r.out;
+      run_cli("compare --map" + capture_args() + " --profile " + os1_64() + " --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("frames registered to each other"), std::string::npos) << r.output;
   const nlohmann::json report = read_json(out / "report.json");
   // 12 frames at 2.5 m/s: 3 m.
   EXPECT_NEAR(report["inputs"]["registration"]["path_length_m"].get<double>(), 3.0, 0.3);
@@ -190,10 +178,10 @@ TEST_F(CompareMap, WithoutATrajectoryTheFramesAreRegisteredToEachOther) {
 }
 
 TEST_F(CompareMap, MapModeNeedsTwoFrames) {
-  const CliRun r = lidartwin("compare --map --frames 1" + capture_args() + " --profile " + os1_64() + " --out " +
-                             (drive_ / "map_one").string());
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.out.find("at least 2"), std::string::npos) << r.out;
+  const CliRun r = run_cli("compare --map --frames 1" + capture_args() + " --profile " + os1_64() + " --out " +
+                           (drive_ / "map_one").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("at least 2"), std::string::npos) << r.output;
 }
 
 }  // namespace
@@ -223,10 +211,10 @@ double measured_spread_in(const nlohmann::json& report, const std::string& featu
 // falls with reflectivity, which a sigma(range) cannot hold, and the diagnosis names E2.
 TEST(CompareRealCapture, MapModeOnAMovingOs1128NamesSignalDependentPrecision) {
   const fs::path out = temp("real_os1_128_map");
-  const CliRun r = lidartwin("compare --map --diagnose --capture " + kSamples + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap" +
-                             " --metadata " + kSamples + "OS-1-128_v2.3.0_1024x10.json --profile os1-128 --out " +
-                             out.string() + " --no-plots");
-  ASSERT_EQ(r.code, 0) << r.out;
+  const CliRun r =
+      run_cli("compare --map --diagnose --capture " + kSamples + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap" + " --metadata " +
+              kSamples + "OS-1-128_v2.3.0_1024x10.json --profile os1-128 --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json report = read_json(out / "report.json");
   EXPECT_NEAR(report["inputs"]["registration"]["path_length_m"].get<double>(), 0.75, 0.15);  // 0.3 s at 2.5 m/s
   EXPECT_GT(report["inputs"]["map"]["compared"].get<size_t>(), 100000u);
@@ -244,9 +232,9 @@ TEST(CompareRealCapture, MapModeOnAMovingOs1128NamesSignalDependentPrecision) {
 // that on bright ones, where the shipped profile predicts one sigma for both.
 TEST(CompareRealCapture, StaticModeOnAMotionlessOs0128SeesSpreadFallWithReflectivity) {
   const fs::path out = temp("real_os0_128_static");
-  const CliRun r = lidartwin("compare --static --capture " + kSamples + "crc_test.pcap --metadata " + kSamples +
-                             "crc_test.json --profile os0-128 --out " + out.string() + " --no-plots");
-  ASSERT_EQ(r.code, 0) << r.out;
+  const CliRun r = run_cli("compare --static --capture " + kSamples + "crc_test.pcap --metadata " + kSamples +
+                           "crc_test.json --profile os0-128 --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json report = read_json(out / "report.json");
   const double dark = measured_spread_in(report, "reflectivity", 0.0);
   const double bright = measured_spread_in(report, "reflectivity", 40.0);
@@ -271,10 +259,10 @@ TEST(CompareMapIndependentCapture, MapModeNamesTheHiddenSignalDependentPrecision
                                " --wall-reflectivity 0.08 0.15 0.3 0.5 0.7 0.95 > /dev/null";
   ASSERT_EQ(std::system(generate.c_str()), 0) << generate;
   const fs::path out = dir / "map";
-  const CliRun r = lidartwin("compare --map --diagnose --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                             (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
-                             " --profile os1-32-paper --out " + out.string() + " --no-plots");
-  ASSERT_EQ(r.code, 0) << r.out;
+  const CliRun r = run_cli("compare --map --diagnose --capture " + (dir / "capture.pcap").string() + " --metadata " +
+                           (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
+                           " --profile os1-32-paper --out " + out.string() + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json report = read_json(out / "report.json");
   const auto& selected = report["diagnosis"]["selected"];
   ASSERT_FALSE(selected.empty()) << report["diagnosis"].dump();

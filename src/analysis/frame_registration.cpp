@@ -101,7 +101,6 @@ std::vector<size_t> sample_pixels(const FramePoints& f, const RegistrationOption
   }
   const size_t stride = std::max<size_t>(1, candidates.size() / std::max<size_t>(options.points_per_frame, 1));
   std::vector<size_t> out;
-  // An odd offset per stride so that samples do not line up on one row.
   for (size_t k = 0; k < candidates.size(); k += stride) out.push_back(candidates[k]);
   return out;
 }

@@ -31,7 +31,8 @@ constexpr double kMinNormalAgreement = 0.9063078;  // cos 25 degrees
 
 enum class Verdict { kCompared, kEdge, kUnsupported, kNotSurface, kOffSurface, kGrazing };
 
-struct Reference {
+// Where a pixel's beam crosses the surface the other frames saw.
+struct Crossing {
   float range_m = 0.0f;
   float cos_incidence = 1.0f;
   float variance_m2 = 0.0f;  // of the reference range along the beam
@@ -101,7 +102,7 @@ class MapReferences {
         std::max(1, static_cast<int>(std::lround(projector.row_spacing_rad() / projector.column_spacing_rad())));
   }
 
-  Verdict reference(size_t k, int m, int r, Reference& out, std::vector<Eigen::Vector3d>& points) const {
+  Verdict reference(size_t k, int m, int r, Crossing& out, std::vector<Eigen::Vector3d>& points) const {
     const FramePoints& own = frames_[k];
     if (beside_step(own, projector_, m, r, column_reach_)) return Verdict::kEdge;
     const size_t i = own.index(m, r);
@@ -286,7 +287,7 @@ class MapReferences {
 
 struct Kept {
   uint16_t m = 0, r = 0;
-  Reference reference;
+  Crossing reference;
 };
 
 }  // namespace
@@ -332,7 +333,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
         const size_t i = f.index(m, r);
         if (!f.returned(i) || static_cast<double>(f.range_m[i]) > setup.max_range_m) continue;
         ++c.returns;
-        Reference ref;
+        Crossing ref;
         switch (references.reference(k, m, r, ref, points)) {
           case Verdict::kCompared:
             ++c.compared;
