@@ -227,6 +227,42 @@ TEST(CompareRealCapture, MapModeOnAMovingOs1128NamesSignalDependentPrecision) {
   fs::remove_all(out);
 }
 
+// The loop on real data, judged on a frame the fit never scored: fit --auto on the sample's first
+// two frames, then compare the shipped profile and the fitted one on the third. In map mode every
+// frame still makes reference surfaces, so the held-out frame is judged against the same map.
+TEST(CompareRealCapture, MapModeFitOnTwoFramesLowersTheErrorOnTheThird) {
+  const fs::path out = temp("real_os1_128_held_out");
+  const std::string in = " --map --capture " + kSamples + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap --metadata " + kSamples +
+                         "OS-1-128_v2.3.0_1024x10.json";
+  const fs::path fitted = out / "fitted.json";
+  const CliRun fit = run_cli("fit" + in + " --frames 2 --auto --profile os1-128 --out " + fitted.string());
+  ASSERT_EQ(fit.exit_code, 0) << fit.output;
+  const nlohmann::json profile = read_json(fitted);
+  EXPECT_EQ(profile["fit"]["frames"].get<size_t>(), 2u);
+  bool e2 = false;
+  for (const auto& effect : profile["effects"]) e2 |= effect["name"] == "signal_precision";
+  EXPECT_TRUE(e2) << profile["effects"].dump();
+
+  const CliRun judged = run_cli("compare" + in + " --skip-frames 2 --profile os1-128 --profile " + fitted.string() +
+                                " --out " + (out / "held_out").string() + " --no-plots");
+  ASSERT_EQ(judged.exit_code, 0) << judged.output;
+  const nlohmann::json report = read_json(out / "held_out" / "report.json");
+  EXPECT_EQ(report["inputs"]["frames"].get<size_t>(), 1u);
+  EXPECT_EQ(report["inputs"]["skipped_frames"].get<size_t>(), 2u);
+  EXPECT_GT(report["inputs"]["map"]["compared"].get<size_t>(), 30000u);
+  const nlohmann::json& shipped = report["waterfall"][0];
+  const nlohmann::json& refit = report["waterfall"][1];
+  const auto excess = [](const nlohmann::json& row) {
+    return (row["nll_per_pixel"].get<double>() - row["nll_expected"].get<double>()) / row["nll_se"].get<double>();
+  };
+  // The fitted profile explains the held-out frame better, and as well as its own model expects.
+  EXPECT_LT(refit["nll_per_pixel"].get<double>(),
+            shipped["nll_per_pixel"].get<double>() - 5.0 * shipped["nll_se"].get<double>());
+  EXPECT_GT(std::abs(excess(shipped)), 5.0);
+  EXPECT_LT(std::abs(excess(refit)), 3.0) << refit.dump();
+  fs::remove_all(out);
+}
+
 // crc_test.pcap: a motionless OS-0-128 whose two frames share 32 columns. Static mode from those
 // two frames sees what was measured by hand: about 13 mm of spread on dark targets, a quarter of
 // that on bright ones, where the shipped profile predicts one sigma for both.

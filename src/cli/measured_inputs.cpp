@@ -123,6 +123,8 @@ void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, cons
   }
   steps.start("fitting each return's surface from the other frames and predicting it");
   MapTableSetup setup{out.capture, *poses, in.pose.empty() ? 0.0 : flags.time_offset_s, chain, profile.max_range_m};
+  setup.first_scored_frame = flags.skip_frames;
+  setup.scored_frames = flags.frames;
   setup.progress = [&steps](double fraction) {
     steps.progress("fitting each return's surface from the other frames and predicting it", fraction);
   };
@@ -130,6 +132,12 @@ void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, cons
   steps.done();
   out.table = std::move(map.table);
   out.map = map.excluded;
+  // From here on the capture is the frames scored, as --frames and --skip-frames read it elsewhere.
+  std::vector<BatchedFrame>& frames = out.capture.frames;
+  const size_t end = flags.frames == 0 ? frames.size() : std::min(frames.size(), flags.skip_frames + flags.frames);
+  frames.erase(frames.begin() + static_cast<std::ptrdiff_t>(end), frames.end());
+  frames.erase(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(flags.skip_frames));
+  out.capture.skipped_frames = flags.skip_frames;
 }
 
 nlohmann::json refinement_json(const PoseRefinement& r) {
@@ -161,7 +169,8 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
           ->capture_default_str();
   sub->add_option("--frames", flags.frames, "use at most this many frames (0 = all)")->capture_default_str();
   sub->add_option("--skip-frames", flags.skip_frames,
-                  "leave out this many frames at the start (e.g. those a fit used: compare on held-out frames)")
+                  "leave out this many frames at the start (e.g. those a fit used: compare on held-out frames); "
+                  "with --map the frames left out still make the reference surfaces")
       ->capture_default_str();
   sub->add_option("--threads", flags.threads, "threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
@@ -210,7 +219,10 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   const Inputs in = resolve_inputs(flags);
   Measured out;
   steps.start("reading the capture");
-  out.capture = read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
+  // Map mode reads every frame: those not scored (--skip-frames, beyond --frames) still make the
+  // surfaces the scored ones are judged against.
+  out.capture = flags.map_mode ? read_capture(in.capture, in.metadata)
+                               : read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
   steps.done();
   if (flags.static_mode) {
     out.table = build_static_table({out.capture, chain, profile.max_range_m});
