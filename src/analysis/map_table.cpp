@@ -313,8 +313,8 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
     analysis_detail::place(frames[k], setup.poses, setup.time_offset_s);
   }
   const size_t scored_begin = setup.first_scored_frame;
-  const size_t scored_end = setup.scored_frames == 0 ? frames.size()
-                                                     : std::min(frames.size(), scored_begin + setup.scored_frames);
+  const size_t scored_end =
+      setup.scored_frames == 0 ? frames.size() : std::min(frames.size(), scored_begin + setup.scored_frames);
   if (scored_begin >= frames.size()) {
     throw InputError(fmt::format("--skip-frames {}: the capture has only {} frame{}", scored_begin, frames.size(),
                                  frames.size() == 1 ? "" : "s"));
