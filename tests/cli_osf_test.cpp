@@ -111,6 +111,26 @@ TEST(CliOsf, CompareMapReportsTheSameFiguresForThePcapAndTheOsf) {
   fs::remove_all(dir);
 }
 
+// fit reads the OSF as compare does: the profile it writes from the OSF is the pcap's, but for the
+// capture it names.
+TEST(CliOsf, FitWritesTheProfileThePcapGives) {
+  const fs::path dir = temp("fit");
+  const std::string common = " --map --profile os1-128 --add signal_precision --threads 2";
+  const CliRun pcap =
+      run_cli("fit --capture " + kPcap + " --metadata " + kJson + common + " --out " + (dir / "pcap.json").string());
+  ASSERT_EQ(pcap.exit_code, 0) << pcap.output;
+  const CliRun osf = run_cli("fit --capture " + kOsf + common + " --out " + (dir / "osf.json").string());
+  ASSERT_EQ(osf.exit_code, 0) << osf.output;
+  nlohmann::json a = read_json(dir / "pcap.json"), b = read_json(dir / "osf.json");
+  EXPECT_EQ(a["fit"]["capture"], kPcap);
+  EXPECT_EQ(b["fit"]["capture"], kOsf);
+  a["fit"].erase("capture");
+  b["fit"].erase("capture");
+  ASSERT_TRUE(a["effects"].dump().find("signal_precision") != std::string::npos) << a["effects"].dump();
+  EXPECT_EQ(b, a);
+  fs::remove_all(dir);
+}
+
 TEST(CliOsf, AMetadataFileBesideTheOsfIsUsedAndSaidSo) {
   const fs::path dir = temp("override");
   const CliRun r = run_cli("compare --static --frames 2 --capture " + kOsf + " --metadata " + kJson +
