@@ -13,7 +13,7 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/pcap/osf.h"
-#include "pcap/osf_image.h"
+#include "pcap/osf_scan_message.h"
 #include "pcap/osf_tables.h"
 
 namespace lidartwin {
@@ -55,13 +55,6 @@ std::pair<uint64_t, uint64_t> major_minor(uint64_t version) {
   if (version == 21) return {2, 1};
   if (version < 20) return {1, version == 0 ? 0 : version - 1};
   return {version >> 48, (version >> 32) & 0xFFFFu};
-}
-
-template <typename Table>
-const Table* verified_root(const uint8_t* data, size_t size, const char* identifier) {
-  fb::Verifier verifier(data, size);
-  if (!verifier.VerifySizePrefixedBuffer<Table>(identifier)) return nullptr;
-  return fb::GetSizePrefixedRoot<Table>(data);
 }
 
 std::string text_of(const fb::String* s) { return s ? s->str() : std::string(); }
@@ -237,67 +230,15 @@ struct OsfReader::Impl {
   OsfScan scan_of(const StampedMessageTable& message);
 };
 
-namespace {
-
-// The fields the analysis reads, with their storage type (CHAN_FIELD_TYPE: 1 UINT8, 2 UINT16, 3 UINT32).
-bool read_field(uint8_t field) { return field >= 1 && field <= 9; }
-
-template <typename T>
-std::vector<T> copy_of(const fb::Vector<T>* v) {
-  return v ? std::vector<T>(v->begin(), v->end()) : std::vector<T>();
-}
-
-}  // namespace
-
 OsfScan OsfReader::Impl::scan_of(const StampedMessageTable& message) {
-  const std::string which = fmt::format("scan {}", scans);
   const fb::Vector<uint8_t>* buffer = message.buffer();
-  const auto* msg = buffer ? verified_root<LidarScanMsgTable>(buffer->data(), buffer->size(), nullptr) : nullptr;
-  if (!msg) fail(which + ": not a valid LidarScan message");
-  OsfScan scan;
-  scan.receive_ns = message.receive_ns();
-  scan.frame_id = msg->frame_id();
-  scan.column_timestamp_ns = copy_of(msg->column_timestamps());
-  scan.measurement_id = copy_of(msg->measurement_ids());
-  scan.column_status = copy_of(msg->column_status());
-  scan.packet_timestamp_ns = copy_of(msg->packet_timestamps());
-  scan.width = static_cast<int>(scan.column_timestamp_ns.size());
-  const size_t width = scan.column_timestamp_ns.size();
-  if (width == 0) fail(which + ": no column timestamps");
-  if (scan.measurement_id.size() != width || scan.column_status.size() != width) {
-    fail(fmt::format("{}: {} column timestamps but {} measurement ids and {} column statuses", which, width,
-                     scan.measurement_id.size(), scan.column_status.size()));
+  try {
+    return decode_scan_message(
+        buffer ? std::span<const uint8_t>(buffer->data(), buffer->size()) : std::span<const uint8_t>(),
+        message.receive_ns());
+  } catch (const MessageError& e) {
+    fail(fmt::format("scan {}, {}", scans, e.what()));
   }
-  const auto* types = msg->field_types();
-  const auto* channels = msg->channels();
-  const size_t fields = types ? types->size() : 0;
-  if (fields == 0 || !channels || channels->size() != fields) {
-    fail(fmt::format("{}: {} field types but {} channels", which, fields, channels ? channels->size() : 0));
-  }
-  for (size_t i = 0; i < fields; ++i) {
-    const ChannelFieldStruct* type = types->Get(static_cast<fb::uoffset_t>(i));
-    if (!read_field(type->field)) continue;
-    const auto field = static_cast<OsfField>(type->field);
-    if (type->type < 1 || type->type > 3) {
-      fail(fmt::format("{}: field {} has storage type {}, not an unsigned 8-, 16- or 32-bit integer", which,
-                       to_string(field), type->type));
-    }
-    const fb::Vector<uint8_t>* encoded = channels->Get(static_cast<fb::uoffset_t>(i))->buffer();
-    FieldImage image;
-    try {
-      image = decode_field_image(encoded ? std::span<const uint8_t>(encoded->data(), encoded->size())
-                                         : std::span<const uint8_t>());
-    } catch (const ImageError& e) {
-      fail(fmt::format("{}, field {}: {}", which, to_string(field), e.what()));
-    }
-    if (static_cast<size_t>(image.width) != width || (scan.height != 0 && image.height != scan.height)) {
-      fail(fmt::format("{}, field {}: a {}x{} image in a scan of {} columns{}", which, to_string(field), image.width,
-                       image.height, width, scan.height ? fmt::format(" and {} rows", scan.height) : ""));
-    }
-    scan.height = image.height;
-    scan.images.push_back({field, std::move(image.values), image.destaggered});
-  }
-  return scan;
 }
 
 OsfReader::OsfReader(const fs::path& path, size_t lidar_stream) : impl_(std::make_unique<Impl>()) {

@@ -6,6 +6,7 @@
 // Field ids are the declaration order of the tables in ouster-sdk 1.0.1 (commit 46b7bce),
 // ouster_osf/fb/*.fbs, namespace ouster.sdk.osf.v2; a field's vtable slot is 4 + 2 * id. Fields
 // appended by newer schema minor versions come after these and are simply not read.
+#include <cstddef>
 #include <cstdint>
 
 #include <flatbuffers/flatbuffers.h>
@@ -136,5 +137,13 @@ struct LidarScanMsgTable : private fb::Table {
            v.EndTable();
   }
 };
+
+// The root table of a size-prefixed flatbuffer, or nullptr if the bytes do not verify as one.
+template <typename Table>
+const Table* verified_root(const uint8_t* data, size_t size, const char* identifier) {
+  fb::Verifier verifier(data, size);
+  if (!verifier.VerifySizePrefixedBuffer<Table>(identifier)) return nullptr;
+  return fb::GetSizePrefixedRoot<Table>(data);
+}
 
 }  // namespace lidartwin::osf_detail
