@@ -107,6 +107,15 @@ TEST(OsfCapture, FramesComeOutStaggeredFromPngAndZpngFields) {
   }
 }
 
+// lb_n3 holds every field of its profile (RNG15_RFL8_NIR8); with the metadata of a dual-return
+// unit, the second return's fields are missing, and said so.
+TEST(OsfCapture, SaysWhichOfTheProfilesFieldsItLacks) {
+  EXPECT_TRUE(read_capture(kOsf, "", 1).missing_fields.empty());
+  const MeasuredCapture dual =
+      read_capture(kOsf, kSamples + "OS-1-128_767798045_1024x10_20230712_120049.json", 1);  // FUSA_RNG15_RFL8_NIR8_DUAL
+  EXPECT_EQ(dual.missing_fields, (std::vector<std::string>{"RANGE2", "REFLECTIVITY2"}));
+}
+
 TEST(OsfCapture, AMetadataFileGivenBesideItReplacesTheStoredOne) {
   // Another OS-1-128's metadata (1024x10, 128 beams, another serial number and profile).
   const MeasuredCapture stored = read_capture(kOsf, "", 1);

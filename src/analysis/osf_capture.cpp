@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -96,6 +97,20 @@ void check_shape(const OsfScan& osf, const LidarDataFormat& format, const std::s
   if (!has_range) throw InputError(names + ": its scans hold no RANGE field (saved with a field list without it?)");
 }
 
+// The profile's channels the scan does not carry, by the SDK's names.
+std::vector<std::string> missing_fields(const OsfScan& osf, const LidarDataFormat& format) {
+  LidarDataFormat one_pixel = format;  // a scan of the profile's channels, one pixel each
+  one_pixel.columns_per_frame = one_pixel.pixels_per_column = one_pixel.columns_per_packet = 1;
+  const Scan probe(one_pixel);
+  std::vector<std::string> missing;
+  for (const OsfField field : {OsfField::kRange, OsfField::kRange2, OsfField::kSignal, OsfField::kSignal2,
+                               OsfField::kReflectivity, OsfField::kReflectivity2, OsfField::kNearIr}) {
+    const bool held = std::ranges::any_of(osf.images, [&](const OsfImage& i) { return i.field == field; });
+    if (!held && probe.has(*channel_of(field))) missing.push_back(to_string(field));
+  }
+  return missing;
+}
+
 }  // namespace
 
 MeasuredCapture read_osf_capture(const fs::path& osf, const fs::path& metadata_path, size_t max_frames,
@@ -119,7 +134,7 @@ MeasuredCapture read_osf_capture(const fs::path& osf, const fs::path& metadata_p
   size_t scans = 0;
   while (auto scan = reader.next()) {
     check_shape(*scan, metadata.format, names);
-    ++scans;
+    if (scans++ == 0) capture.missing_fields = missing_fields(*scan, metadata.format);
     BatchedFrame frame = frame_of(*scan, metadata, expected_packets);
     capture.counts.batched += frame.packets;
     for (const uint64_t stamp : frame.scan.timestamp_ns) {

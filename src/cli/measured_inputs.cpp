@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "lidartwin/analysis/static_table.h"
 #include "lidartwin/error.h"
@@ -236,6 +237,10 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   out.capture = flags.map_mode ? read_capture(in.capture, in.metadata)
                                : read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
   steps.done();
+  if (!out.capture.missing_fields.empty()) {
+    std::fprintf(stderr, "note: %s holds no %s field; those channels are left zero\n", in.capture.string().c_str(),
+                 fmt::format("{}", fmt::join(out.capture.missing_fields, ", ")).c_str());
+  }
   if (out.capture.lidar_streams > 1) {
     std::fprintf(stderr, "note: %s holds %zu lidar sensors; reading the first\n", in.capture.string().c_str(),
                  out.capture.lidar_streams);
@@ -262,6 +267,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
                 {"skipped_frames", out.capture.skipped_frames},
                 {"lidar_mode", to_string(LidarMode{format.columns_per_frame, format.fps})},
                 {"udp_profile_lidar", to_string(format.udp_profile_lidar)}};
+  if (!out.capture.missing_fields.empty()) out.inputs["missing_fields"] = out.capture.missing_fields;
   if (out.refinement) out.inputs["pose_refinement"] = refinement_json(*out.refinement);
   if (out.registration) {
     const FrameRegistration& r = *out.registration;

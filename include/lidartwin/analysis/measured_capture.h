@@ -3,6 +3,7 @@
 // batched as the Ouster SDK batches them.
 #include <cstddef>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "lidartwin/metadata/metadata.h"
@@ -18,6 +19,9 @@ struct MeasuredCapture {
   size_t skipped_frames = 0;         // frames read before `frames` (held out for another use)
   uint64_t start_ns = 0;             // the first valid column timestamp of the capture, skipped frames included
   size_t lidar_streams = 1;          // an OSF file's sensors (LidarScan streams); the first is read
+  // Channels of the metadata's profile that an OSF file does not hold (saved with a field list),
+  // left zero: "SIGNAL", "NEAR_IR"...
+  std::vector<std::string> missing_fields;
 };
 
 // Reads up to max_frames frames (0: all) of a pcap, or of an OSF recording (ouster-cli's; told by
