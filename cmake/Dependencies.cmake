@@ -11,6 +11,11 @@ find_package(GTest REQUIRED)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(PCAP REQUIRED IMPORTED_TARGET libpcap)
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+# OSF recordings: flatbuffers (header-only use) for their tables, stb_image for their PNG fields,
+# zstd for their ZPNG fields (ouster-cli's default encoding in ouster-sdk 1.0.1).
+find_package(FlatBuffers REQUIRED)
+pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb)
+pkg_check_modules(ZSTD REQUIRED IMPORTED_TARGET libzstd)
 if(LIDARTWIN_BENCHMARKS)
   find_package(benchmark REQUIRED)
 endif()

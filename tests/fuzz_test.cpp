@@ -1,7 +1,7 @@
 // Hostile bytes for every decoder. tools/test reruns the suites named Fuzz* under AddressSanitizer
 // and UBSan (Debug, asserts on), so a test passes only if nothing reads out of bounds or trips an
-// invariant. One suite per decoder: FuzzPacket (lidar), FuzzImuPacket; metadata and pcap suites
-// follow the same pattern.
+// invariant. One suite per decoder: FuzzPacket (lidar), FuzzImuPacket; metadata, pcap and OSF
+// suites follow the same pattern.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -16,6 +16,7 @@
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/pcap/osf.h"
 #include "lidartwin/pcap/pcap.h"
 #include "packet_test_util.h"
 #include "support/raw_pcap.h"
@@ -306,6 +307,89 @@ TEST(FuzzPcap, FragmentSoupReadsOrFailsCleanly) {
     }
     file.write(test::raw_pcap(records));
     expect_reads_or_input_error(file.path());
+  }
+}
+
+// ---- FuzzOsf: hostile OSF files. OsfReader must read to the end or throw InputError naming the
+// file, never crash. Every block ends with a CRC-32 that would stop most damage at the door, so
+// the mutated files get their CRCs made right again: the damage reaches the flatbuffer tables and
+// the field images behind them.
+
+uint32_t osf_crc32(const uint8_t* data, size_t size) {
+  uint32_t crc = 0xFFFFFFFFu;
+  for (size_t i = 0; i < size; ++i) {
+    crc ^= data[i];
+    for (int k = 0; k < 8; ++k) crc = (crc & 1u) ? (crc >> 1) ^ 0xEDB88320u : crc >> 1;
+  }
+  return ~crc;
+}
+
+uint32_t little32_at(const std::vector<uint8_t>& bytes, size_t at) {
+  return bytes[at] | bytes[at + 1] << 8 | bytes[at + 2] << 16 | static_cast<uint32_t>(bytes[at + 3]) << 24;
+}
+
+// The OSF blocks, [u32 size][size bytes][u32 CRC]: header, chunks and metadata follow each other.
+std::vector<std::pair<size_t, size_t>> osf_blocks(const std::vector<uint8_t>& bytes) {
+  std::vector<std::pair<size_t, size_t>> blocks;  // (offset, size)
+  for (size_t at = 0; at + 4 <= bytes.size();) {
+    const size_t size = little32_at(bytes, at);
+    if (at + 8 + size > bytes.size()) break;
+    blocks.emplace_back(at, size);
+    at += 8 + size;
+  }
+  return blocks;
+}
+
+void expect_osf_reads_or_input_error(const std::filesystem::path& path) {
+  try {
+    OsfReader reader(path);
+    while (auto scan = reader.next()) {
+      for (const OsfImage& image : scan->images) {
+        ASSERT_EQ(image.values.size(), static_cast<size_t>(scan->width) * static_cast<size_t>(scan->height));
+      }
+    }
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(path.string()), std::string::npos) << e.what();
+  }
+}
+
+TEST(FuzzOsf, MutatedRecordingsReadOrFailCleanly) {
+  std::mt19937_64 rng(43);  // fixed seed: a crash must reproduce
+  // One ZPNG scan, the smallest real recording: its tables, then nine field images.
+  const auto original = test::read_bytes(kOusterSamples / "osfs" / "single_scan_016.osf");
+  const auto blocks = osf_blocks(original);
+  ASSERT_EQ(blocks.size(), 3u) << "header, one chunk, metadata";
+  test::TempFile file(".osf");
+  // 60 trials: each decodes nine field images, about 0.3 s under the sanitizers' Debug build.
+  for (int trial = 0; trial < 60; ++trial) {
+    std::vector<uint8_t> bytes = original;
+    for (int changes = 1 + static_cast<int>(rng() % 4); changes > 0; --changes) {
+      // The chunk (tables and images) most often, the metadata less, the small header rarely: any
+      // change there stops the read before the rest is seen. Half the chunk's and metadata's damage
+      // lands in their first or last 2 KiB, where their tables are.
+      const size_t roll = rng() % 20;
+      const auto [offset, size] = blocks[roll == 0 ? 0 : roll < 13 ? 1 : 2];
+      const size_t span = size + 8, edge = std::min<size_t>(span, 2048);
+      size_t at = offset + rng() % span;
+      if (rng() % 2) at = rng() % 2 ? offset + rng() % edge : offset + span - 1 - rng() % edge;
+      bytes[at] = static_cast<uint8_t>(rng());
+    }
+    for (const auto& [offset, size] : blocks) {
+      const uint32_t crc = osf_crc32(bytes.data() + offset, 4 + size);
+      for (int k = 0; k < 4; ++k)
+        bytes[offset + 4 + size + static_cast<size_t>(k)] = static_cast<uint8_t>(crc >> (8 * k));
+    }
+    file.write(bytes);
+    expect_osf_reads_or_input_error(file.path());
+  }
+}
+
+TEST(FuzzOsf, TruncatedRecordingsFailCleanly) {
+  const auto bytes = test::read_bytes(kOusterSamples / "osfs" / "single_scan_016.osf");
+  test::TempFile file(".osf");
+  for (size_t length = 0; length < bytes.size(); length += 1 + length / 4) {
+    file.write({bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(length)});
+    expect_osf_reads_or_input_error(file.path());
   }
 }
 

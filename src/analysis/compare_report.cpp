@@ -113,6 +113,7 @@ nlohmann::json inputs_json(const CompareInputs& in) {
                         {"lidar_mode", in.lidar_mode},
                         {"udp_profile_lidar", in.udp_profile_lidar},
                         {"seed", in.seed}};
+  if (!in.missing_fields.empty()) out["missing_fields"] = in.missing_fields;
   if (in.pose_refinement) out["pose_refinement"] = refinement_json(*in.pose_refinement);
   if (in.registration) {
     const FrameRegistration& r = *in.registration;

@@ -8,8 +8,10 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "analysis/osf_capture.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/lidar_packet.h"
+#include "lidartwin/pcap/osf.h"
 #include "lidartwin/pcap/pcap.h"
 
 namespace lidartwin {
@@ -30,6 +32,10 @@ std::string size_histogram(const std::map<size_t, size_t>& sizes) {
 
 MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::filesystem::path& metadata_path,
                              size_t max_frames, size_t skip_frames) {
+  if (read_as_osf(pcap)) return analysis_detail::read_osf_capture(pcap, metadata_path, max_frames, skip_frames);
+  if (metadata_path.empty()) {
+    throw InputError("--capture " + pcap.string() + ": give --metadata (the capture's sensor metadata JSON)");
+  }
   MeasuredCapture capture;
   capture.metadata = load_metadata(metadata_path);
   const Metadata& metadata = capture.metadata;

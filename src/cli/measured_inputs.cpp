@@ -8,10 +8,12 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "lidartwin/analysis/static_table.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/pcap/osf.h"
 #include "lidartwin/pose/pose_source.h"
 #include "lidartwin/scene/scene.h"
 
@@ -34,7 +36,15 @@ Inputs resolve_inputs(const MeasuredFlags& flags) {
     if (in.pose.empty() && !flags.map_mode && fs::exists(dir / "poses.tum")) in.pose = dir / "poses.tum";
   }
   if (!fs::is_regular_file(in.capture)) throw InputError("--capture " + in.capture.string() + ": no such capture file");
-  if (in.metadata.empty()) throw InputError("give --metadata (the capture's sensor metadata JSON)");
+  // An OSF recording carries its sensor's metadata; a --metadata given beside it wins.
+  if (read_as_osf(in.capture)) {
+    if (!in.metadata.empty()) {
+      std::fprintf(stderr, "note: --metadata %s replaces the sensor metadata stored in the OSF file %s\n",
+                   in.metadata.string().c_str(), in.capture.string().c_str());
+    }
+  } else if (in.metadata.empty()) {
+    throw InputError("give --metadata (the capture's sensor metadata JSON)");
+  }
   if (flags.static_mode) return {in.capture, in.metadata, {}};
   if (flags.map_mode) return in;  // --pose optional: without it the frames are registered
   if (flags.scene.empty()) {
@@ -143,8 +153,11 @@ void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, cons
 }  // namespace
 
 void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
-  sub->add_option("--capture", flags.capture, "capture .pcap, or a `lidartwin record` output directory")->required();
-  sub->add_option("--metadata", flags.metadata, "the capture's sensor metadata JSON (FW 2.x/3.x)");
+  sub->add_option("--capture", flags.capture,
+                  "capture: a .pcap, an .osf recording (ouster-cli's), or a `lidartwin record` output directory")
+      ->required();
+  sub->add_option("--metadata", flags.metadata,
+                  "the capture's sensor metadata JSON (FW 2.x/3.x); optional for an OSF file, which carries it");
   auto* scene = sub->add_option("--scene", flags.scene, "glTF scene (.glb/.gltf) of the measured place")
                     ->check(CLI::ExistingFile);
   auto* pose =
@@ -212,6 +225,14 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   out.capture = flags.map_mode ? read_capture(in.capture, in.metadata)
                                : read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
   steps.done();
+  if (!out.capture.missing_fields.empty()) {
+    std::fprintf(stderr, "note: %s holds no %s field; those channels are left zero\n", in.capture.string().c_str(),
+                 fmt::format("{}", fmt::join(out.capture.missing_fields, ", ")).c_str());
+  }
+  if (out.capture.lidar_streams > 1) {
+    std::fprintf(stderr, "note: %s holds %zu lidar sensors; reading the first\n", in.capture.string().c_str(),
+                 out.capture.lidar_streams);
+  }
   if (flags.static_mode) {
     out.table = build_static_table({out.capture, chain, profile.max_range_m});
   } else if (flags.map_mode) {
@@ -224,7 +245,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   const LidarDataFormat& format = out.capture.metadata.format;
   CompareInputs& inputs = out.inputs;
   inputs.capture = in.capture.string();
-  inputs.metadata = in.metadata.string();
+  inputs.metadata = in.metadata.empty() ? "(stored in the OSF capture)" : in.metadata.string();
   inputs.scene = flags.scene;
   inputs.pose = in.pose.string();
   inputs.static_mode = flags.static_mode;
@@ -234,6 +255,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   inputs.skipped_frames = out.capture.skipped_frames;
   inputs.lidar_mode = to_string(LidarMode{format.columns_per_frame, format.fps});
   inputs.udp_profile_lidar = to_string(format.udp_profile_lidar);
+  inputs.missing_fields = out.capture.missing_fields;
   return out;
 }
 

@@ -1,4 +1,5 @@
-// `lidartwin pcap-info CAPTURE [--metadata JSON]`: what a capture holds, before anyone analyses it.
+// `lidartwin pcap-info CAPTURE [--metadata JSON]`: what a capture (pcap or OSF) holds, before anyone
+// analyses it.
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -8,6 +9,7 @@
 #include <string>
 
 #include "cli/command.h"
+#include "cli/osf_info.h"
 #include "cli/pcap_info.h"
 
 namespace lidartwin::cli {
@@ -88,7 +90,42 @@ void print_lidar(const Metadata& m, const LidarSummary& s) {
   print_frames(s);
 }
 
+void print_osf(const std::string& capture, const OsfSummary& s) {
+  const OsfFileInfo& f = s.file;
+  std::cout << "capture: " << capture << " (OSF " << f.version_name << ", written by "
+            << (f.writer.empty() ? "(unnamed)" : f.writer) << ")\n"
+            << "streams and metadata entries:\n";
+  for (const OsfEntry& e : f.entries) std::cout << "  " << e.id << "  " << e.type << "\n";
+  std::cout << "lidar streams: " << f.lidar_streams << " (reading stream " << f.lidar_stream_id;
+  if (f.lidar_streams > 1) std::cout << ", the first; the others are left out";
+  std::cout << ")\n";
+}
+
+void print_osf_scans(const OsfSummary& s) {
+  std::cout << "scans: " << s.scans << "\n";
+  if (s.scans == 0) return;
+  std::cout << "frame ids: " << s.first_frame_id << " .. " << s.last_frame_id << "\n";
+  std::printf("time span: %.6f s (column timestamps %llu .. %llu ns)\n",
+              static_cast<double>(s.last_column_ns - s.first_column_ns) * 1e-9,
+              static_cast<unsigned long long>(s.first_column_ns), static_cast<unsigned long long>(s.last_column_ns));
+  std::cout << "valid columns per scan: " << s.min_valid_columns;
+  if (s.max_valid_columns != s.min_valid_columns) std::cout << " .. " << s.max_valid_columns;
+  std::printf("\nvalid pixel fraction: %.4f (range != 0 among %llu pixels of valid columns)\n",
+              s.pixels ? static_cast<double>(s.returns) / static_cast<double>(s.pixels) : 0.0,
+              static_cast<unsigned long long>(s.pixels));
+}
+
+// An OSF recording holds scans, not datagrams, and its own metadata (--metadata replaces it).
+int run_osf_info(const PcapInfoFlags& flags) {
+  const OsfSummary summary = summarize_osf(flags.capture, flags.metadata);
+  print_osf(flags.capture, summary);
+  print_metadata(flags.metadata.empty() ? "(stored in the OSF file)" : flags.metadata, summary.metadata);
+  print_osf_scans(summary);
+  return 0;
+}
+
 int run_pcap_info(const PcapInfoFlags& flags) {
+  if (read_as_osf(flags.capture)) return run_osf_info(flags);
   // Metadata first: a broken metadata file fails before a long capture is read.
   std::unique_ptr<Metadata> metadata;
   if (!flags.metadata.empty()) metadata = std::make_unique<Metadata>(load_metadata(flags.metadata));
@@ -109,8 +146,9 @@ void setup_pcap_info(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<PcapInfoFlags>();
   CLI::App* sub = app.add_subcommand("pcap-info",
                                      "Summarize a capture: datagrams by port and size; with metadata, "
-                                     "lidar packets, frames, valid pixels and CRCs");
-  sub->add_option("capture", flags->capture, "pcap file")->required();
+                                     "lidar packets, frames, valid pixels and CRCs. An OSF recording: its "
+                                     "streams, its sensor metadata, scans and time span");
+  sub->add_option("capture", flags->capture, "pcap file, or an OSF recording (ouster-cli's .osf)")->required();
   sub->add_option("--metadata", flags->metadata, "sensor metadata JSON (nested or legacy flat)");
   sub->callback([&run, flags] { run = [flags] { return run_pcap_info(*flags); }; });
 }

@@ -69,10 +69,12 @@ void setup_points(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<PointsFlags>();
   CLI::App* sub = app.add_subcommand(
       "points", "A capture's frames as XYZ points (sensor frame, as the SDK projects them) with timestamps, in .npz");
-  sub->add_option("--capture", flags->capture, "pcap of the sensor's lidar packets")
+  sub->add_option("--capture", flags->capture, "pcap of the sensor's lidar packets, or an OSF recording")
       ->required()
       ->check(CLI::ExistingFile);
-  sub->add_option("--metadata", flags->metadata, "the sensor's metadata JSON")->required()->check(CLI::ExistingFile);
+  sub->add_option("--metadata", flags->metadata,
+                  "the sensor's metadata JSON (optional for an OSF file, which carries it)")
+      ->check(CLI::ExistingFile);
   sub->add_option("--out", flags->out,
                   "the .npz: xyz (N x 3, m), t_s (column timestamp, s), row, column; per frame frame_offsets "
                   "(F + 1, into the points), frame_t_s (first valid column), frame_id")

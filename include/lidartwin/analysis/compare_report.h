@@ -42,6 +42,7 @@ struct CompareInputs {
   size_t frames = 0;  // scored
   size_t skipped_frames = 0;
   std::string lidar_mode, udp_profile_lidar;
+  std::vector<std::string> missing_fields;        // of the profile, absent from an OSF recording
   uint64_t seed = 0;                              // of the randomised PIT
   std::optional<PoseRefinement> pose_refinement;  // --refine-pose
   std::optional<FrameRegistration> registration;  // --map without --pose

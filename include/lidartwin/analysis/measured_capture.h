@@ -3,6 +3,7 @@
 // batched as the Ouster SDK batches them.
 #include <cstddef>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "lidartwin/metadata/metadata.h"
@@ -17,14 +18,20 @@ struct MeasuredCapture {
   ScanBatcher::Counts counts;        // what the batcher did with them
   size_t skipped_frames = 0;         // frames read before `frames` (held out for another use)
   uint64_t start_ns = 0;             // the first valid column timestamp of the capture, skipped frames included
+  size_t lidar_streams = 1;          // an OSF file's sensors (LidarScan streams); the first is read
+  // Channels of the metadata's profile that an OSF file does not hold (saved with a field list),
+  // left zero: "SIGNAL", "NEAR_IR"...
+  std::vector<std::string> missing_fields;
 };
 
-// Reads up to max_frames frames (0: all). Packets of another sensor or session (init_id, prod_sn
-// other than the metadata's) are left out as the SDK leaves them out. Throws InputError naming the
+// Reads up to max_frames frames (0: all) of a pcap, or of an OSF recording (ouster-cli's; told by
+// its header, whatever its name), whose LidarScans become the frames; an OSF file carries its
+// metadata, so metadata_path may be empty for one (given, it replaces the file's). Packets of another sensor or session
+// (init_id, prod_sn other than the metadata's) are left out as the SDK leaves them out. Throws InputError naming the
 // capture and the metadata when no datagram is a lidar packet of the metadata's format (a capture
 // of another mode or profile, or of another sensor), or the metadata's lidar output is off.
 // skip_frames: frames left out at the start (a fit's frames, when comparing on held-out ones).
-MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::filesystem::path& metadata_path,
+MeasuredCapture read_capture(const std::filesystem::path& capture, const std::filesystem::path& metadata_path,
                              size_t max_frames = 0, size_t skip_frames = 0);
 
 }  // namespace lidartwin
