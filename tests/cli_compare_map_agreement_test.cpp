@@ -67,6 +67,7 @@ struct Judged {
   std::string hidden;         // the effect the capture has and the profile lacks
   nlohmann::json scene, map;  // the two report.json
   nlohmann::json same;        // same_returns_spread.py on them
+  nlohmann::json registered;  // the same for map mode with the frames registered to each other
 };
 
 class MapAgreement : public ::testing::Test {
@@ -97,6 +98,21 @@ class MapAgreement : public ::testing::Test {
           " --capture " + (out / "capture.pcap").string() + " --metadata " + (out / "metadata.json").string() +
               " --pose " + (out / "poses.tum").string() + " --profile " + table_.string(),
           " --scene " + kSource + "/scenes/" + scene, hidden);
+    // The frames registered to each other instead of placed by the trajectory (no --diagnose).
+    const fs::path registered = dir_ / (name + "_registered");
+    const CliRun m =
+        run_cli("compare --map --no-plots --capture " + (out / "capture.pcap").string() + " --metadata " +
+                (out / "metadata.json").string() + " --profile " + table_.string() + " --out " + registered.string());
+    ASSERT_EQ(m.exit_code, 0) << m.output;
+    judged_[name].registered = same_returns(name + "_scene", name + "_registered");
+  }
+
+  static nlohmann::json same_returns(const std::string& scene, const std::string& map) {
+    const fs::path same = dir_ / (map + "_same.json");
+    const std::string script = kPython + kSource + "/tests/tools/same_returns_spread.py " + (dir_ / scene).string() +
+                               " " + (dir_ / map).string() + " > " + same.string();
+    EXPECT_EQ(std::system(script.c_str()), 0) << script;
+    return read_json(same);
   }
 
   // Six walls of different reflectivity, moving at 1 m/s and 20 deg/s, spread following the SNR.
@@ -124,12 +140,7 @@ class MapAgreement : public ::testing::Test {
       ASSERT_EQ(r.exit_code, 0) << r.output;
       (map ? j.map : j.scene) = read_json(out / "report.json");
     }
-    const fs::path same = dir_ / (name + "_same.json");
-    const std::string script = kPython + kSource + "/tests/tools/same_returns_spread.py " +
-                               (dir_ / (name + "_scene")).string() + " " + (dir_ / (name + "_map")).string() + " > " +
-                               same.string();
-    ASSERT_EQ(std::system(script.c_str()), 0) << script;
-    j.same = read_json(same);
+    j.same = same_returns(name + "_scene", name + "_map");
   }
 
   static inline fs::path dir_, table_;
@@ -163,19 +174,36 @@ bool spread_fails(const nlohmann::json& report, const std::string& feature, doub
 // beyond 13 m, seen at 80-85 degrees of incidence, where the reference's variance is most of the
 // residual's (s^2 h / cos^2 with cos^2 near 0.01) and is under-counted: there, within 12 %
 // (docs/compare-report.md, "References without a scene").
+// Map mode's spread ratio over the scene's, per bin of `feature` holding kMinInliers or more;
+// returns how many were compared.
+size_t expect_agreement(const std::string& name, const nlohmann::json& same, const std::string& feature) {
+  size_t compared = 0;
+  for (const auto& bin : same[feature]) {
+    if (bin["inliers"].get<size_t>() < kMinInliers) continue;
+    const double ratio = bin["map"].get<double>() / bin["scene"].get<double>();
+    const bool grazing_ground = feature == "range" && bin["bin"][0].get<double>() == 13.0;
+    EXPECT_NEAR(ratio, 1.0, grazing_ground ? 0.12 : 0.05) << name << " " << feature << " " << bin.dump();
+    ++compared;
+  }
+  return compared;
+}
+
 TEST_F(MapAgreement, SpreadPerRangeAndReflectivityBinAgreesWithTheScenesOnTheSameReturns) {
   for (const auto& [name, j] : judged_) {
-    size_t compared = 0;
-    for (const std::string feature : {"range", "reflectivity"}) {
-      for (const auto& bin : j.same[feature]) {
-        if (bin["inliers"].get<size_t>() < kMinInliers) continue;
-        const double ratio = bin["map"].get<double>() / bin["scene"].get<double>();
-        const bool grazing_ground = feature == "range" && bin["bin"][0].get<double>() == 13.0;
-        EXPECT_NEAR(ratio, 1.0, grazing_ground ? 0.12 : 0.05) << name << " " << feature << " " << bin.dump();
-        ++compared;
-      }
-    }
-    EXPECT_GE(compared, 4u) << name << ": " << j.same.dump();
+    EXPECT_GE(expect_agreement(name, j.same, "range") + expect_agreement(name, j.same, "reflectivity"), 4u)
+        << name << ": " << j.same.dump();
+  }
+}
+
+// With the frames registered to each other the same holds per range bin. Per reflectivity bin it
+// does not yet: where the profile is right (the plant's 40-60 %, walls at near-normal incidence)
+// the registration's error (a few millimetres, not in the reference's variance) shows, 1.07 times
+// the scene's (docs/compare-report.md).
+TEST_F(MapAgreement, WithRegisteredFramesTheSpreadPerRangeBinAgrees) {
+  for (const auto& [name, j] : judged_) {
+    if (j.registered.is_null()) continue;  // the independent capture is judged with its trajectory only
+    EXPECT_GE(expect_agreement(name + " (registered)", j.registered, "range"), 2u)
+        << name << ": " << j.registered.dump();
   }
 }
 
