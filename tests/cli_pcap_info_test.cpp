@@ -47,6 +47,18 @@ TEST(CliPcapInfo, DecodesFramesWithMetadata) {
   EXPECT_NE(run.output.find("profile: RNG15_RFL8_NIR8"), std::string::npos) << run.output;
 }
 
+// A dual-return capture: the share of returns with a second one (what the shipped profiles' mixed
+// pixels are judged against), and single-return profiles say nothing of second returns.
+TEST(CliPcapInfo, CountsSecondReturnsOfDualProfiles) {
+  const CliRun dual = run_cli("pcap-info " + kSamples + "OS-0-32-U1_v2.2.0_1024x10.pcap --metadata " + kSamples +
+                              "OS-0-32-U1_v2.2.0_1024x10.json");
+  ASSERT_EQ(dual.exit_code, 0) << dual.output;
+  EXPECT_TRUE(has_line(dual.output, "second returns: 0.0080 of returns (range2 != 0: 172)")) << dual.output;
+  const CliRun single = run_cli("pcap-info " + kSamples + "crc_test.pcap --metadata " + kSamples + "crc_test.json");
+  ASSERT_EQ(single.exit_code, 0) << single.output;
+  EXPECT_EQ(single.output.find("second returns"), std::string::npos) << single.output;
+}
+
 TEST(CliPcapInfo, ChecksCrcsOfFirmware32Packets) {
   // README: crc_test.pcap, 512x10, 34 lidar packets with valid CRC-64 footers, 10 IMU.
   const CliRun run = run_cli("pcap-info " + kSamples + "crc_test.pcap --metadata " + kSamples + "crc_test.json");

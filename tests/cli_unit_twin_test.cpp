@@ -98,9 +98,8 @@ TEST(UnitTwinFit, FittedProfileKeepsTheUnitsIntrinsics) {
   const test::CliRun recorded = record_twin(unit, dir / "capture");
   ASSERT_EQ(recorded.exit_code, 0) << recorded.output;
   const fs::path fitted = dir / "fitted.json";
-  const test::CliRun fit =
-      run_cli("fit --capture " + arg(dir / "capture") + " --scene " + arg(test::hall_scene()) +
-              " --threads 1 --profile " + arg(unit) + " --add signal_precision --out " + arg(fitted));
+  const test::CliRun fit = run_cli("fit --capture " + arg(dir / "capture") + " --scene " + arg(test::hall_scene()) +
+                                   " --threads 1 --profile " + arg(unit) + " --add range_walk --out " + arg(fitted));
   ASSERT_EQ(fit.exit_code, 0) << fit.output;
 
   const SensorProfile profile = load_profile(fitted.string());
@@ -113,7 +112,7 @@ TEST(UnitTwinFit, FittedProfileKeepsTheUnitsIntrinsics) {
   const SensorProfile family = load_profile("os1-32");
   std::vector<std::string> names;
   for (const auto& effect : profile.effects) {
-    if (effect["name"] != "signal_precision") names.push_back(effect["name"]);
+    if (effect["name"] != "range_walk") names.push_back(effect["name"]);
   }
   std::vector<std::string> family_names;
   for (const auto& effect : family.effects) family_names.push_back(effect["name"]);

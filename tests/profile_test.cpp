@@ -144,8 +144,10 @@ TEST(Profile, PiecewiseNoiseMatchesTableIInsideEveryInterval) {
     for (const char* beams : {"-32", "-64", "-128"}) {
       const SensorProfile profile = load_profile(std::string(family) + beams);
       SCOPED_TRACE(profile.name);
-      const json& noise = profile.effects.at(1);
-      ASSERT_EQ(noise.at("name"), "range_noise_piecewise");
+      const auto found = std::find_if(profile.effects.begin(), profile.effects.end(),
+                                      [](const json& e) { return e.at("name") == "range_noise_piecewise"; });
+      ASSERT_NE(found, profile.effects.end());
+      const json& noise = *found;
       for (const auto& [lower, upper, sigma] : table) {
         // Knots sit 2 % inside each edge, so the curve equals the table away from the edges.
         for (double u = 0.0; u <= 1.0; u += 0.125) {
@@ -173,9 +175,11 @@ TEST(Profile, RangeLimitsEffectAgreesWithTheProfile) {
 }
 
 // The datasheet profiles enable the effects with a sourced default (lidar-physics.md): incidence
-// with the datasheet's beam divergence (E4, [S1]); on OS1, detection from the signal, whose
-// default threshold is set from the OS1 range specification (E5, [S1]). The paper profiles stay
-// the paper's law; OS2 and the detection threshold of OS0 have no source.
+// with the datasheet's beam divergence (E4, [S1]) unless a fit on a real capture changed it; on
+// OS1, detection from the signal, whose default threshold is set from the OS1 range specification
+// (E5, [S1]); and what real captures support: E2 fitted, E6 (DUAL second returns). Every effect
+// whose parameters are not the library's defaults says where they came from. The paper profiles
+// stay the paper's law; OS2 and the detection threshold of OS0 have no source.
 TEST(Profile, DatasheetProfilesEnableTheEffectsWithSourcedDefaults) {
   for (const auto& name : available_profiles()) {
     const SensorProfile profile = load_profile(name);
@@ -185,9 +189,19 @@ TEST(Profile, DatasheetProfilesEnableTheEffectsWithSourcedDefaults) {
     const bool paper = name.ends_with("-paper"), os0 = name.starts_with("os0"), os1 = name.starts_with("os1");
     EXPECT_EQ(has("incidence"), !paper && (os0 || os1)) << name;
     EXPECT_EQ(has("dropout"), !paper && os1) << name;
+    EXPECT_EQ(has("signal_precision"), !paper && (os0 || os1)) << name;
+    EXPECT_EQ(has("mixed_pixels"), !paper && (os0 || os1)) << name;
     for (const json& effect : profile.effects) {
-      if (effect.at("name") == "incidence") {
+      const std::string source = effect.value("source", "");
+      if (effect.at("name") == "incidence" && source.find("lidartwin fit") == std::string::npos) {
         EXPECT_EQ(effect.at("divergence_rad"), profile.beam_divergence_rad) << name;
+      }
+      if (effect.at("name") == "signal_precision") {
+        EXPECT_GT(effect.at("k_m").get<double>(), 0.0) << name;
+        EXPECT_NE(source.find("lidartwin fit"), std::string::npos) << name << ": " << source;
+      }
+      if (!paper && (os0 || os1) && effect.size() > 1 && effect.at("name") != "range_limits") {
+        EXPECT_FALSE(source.empty()) << name << ": " << effect.dump();
       }
     }
   }

@@ -85,11 +85,63 @@ nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
   return out;
 }
 
-nlohmann::json compare_report(const Misfit& misfit, const nlohmann::json& inputs, double alpha) {
+namespace {
+
+nlohmann::json refinement_json(const PoseRefinement& r) {
+  const Eigen::Vector3d t = r.correction.translation;
+  const Eigen::Quaterniond q = r.correction.rotation;
+  return {{"correction", {{"translation_m", {t.x(), t.y(), t.z()}}, {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
+          {"sensor_shift_m", {r.sensor_shift_m.x(), r.sensor_shift_m.y(), r.sensor_shift_m.z()}},
+          {"rotation_deg", r.rotation_deg},
+          {"rms_before_m", r.rms_before_m},
+          {"rms_after_m", r.rms_after_m},
+          {"points", r.points},
+          {"iterations", r.iterations}};
+}
+
+nlohmann::json inputs_json(const CompareInputs& in) {
+  nlohmann::json out = {{"capture", in.capture},
+                        {"metadata", in.metadata},
+                        {"scene", in.scene},
+                        {"pose", in.pose},
+                        {"static", in.static_mode},
+                        {"map", in.map_mode},
+                        {"profile", in.profile},
+                        {"time_offset_s", in.time_offset_s},
+                        {"frames", in.frames},
+                        {"skipped_frames", in.skipped_frames},
+                        {"lidar_mode", in.lidar_mode},
+                        {"udp_profile_lidar", in.udp_profile_lidar},
+                        {"seed", in.seed}};
+  if (in.pose_refinement) out["pose_refinement"] = refinement_json(*in.pose_refinement);
+  if (in.registration) {
+    const FrameRegistration& r = *in.registration;
+    out["registration"] = {
+        {"iterations", r.iterations}, {"pairs", r.pairs}, {"rms_m", r.rms_m}, {"path_length_m", r.path_length_m}};
+  }
+  if (in.map) {  // in place of map mode's `true`: what it compared and what it left out
+    const MapExclusions& x = *in.map;
+    out["map"] = {{"returns", x.returns},
+                  {"compared", x.compared},
+                  {"excluded",
+                   {{"edge", x.edge},
+                    {"unsupported", x.unsupported},
+                    {"not_surface", x.not_surface},
+                    {"off_surface", x.off_surface},
+                    {"grazing", x.grazing}}}};
+  }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json report_json(const CompareResult& result) {
+  const Misfit& misfit = result.misfit;
+  const double alpha = result.alpha;
   const MisfitSummary& s = misfit.summary;
   nlohmann::json report;
   report["schema"] = kCompareReportSchema;
-  report["inputs"] = inputs;
+  report["inputs"] = inputs_json(result.inputs);
   report["summary"] = {{"frames", s.frames},
                        {"pixels", s.pixels},
                        {"returns", s.returns},
@@ -122,6 +174,8 @@ nlohmann::json compare_report(const Misfit& misfit, const nlohmann::json& inputs
   nlohmann::json bins = nlohmann::json::array();
   for (const BinMisfit& b : misfit.bins) bins.push_back(bin_json(b));
   report["bins"] = std::move(bins);
+  if (result.waterfall.size() > 1) report["waterfall"] = waterfall_json(result.waterfall);
+  if (result.diagnosis) report["diagnosis"] = diagnosis_json(*result.diagnosis);
   return report;
 }
 

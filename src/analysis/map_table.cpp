@@ -312,6 +312,13 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
     }
     analysis_detail::place(frames[k], setup.poses, setup.time_offset_s);
   }
+  const size_t scored_begin = setup.first_scored_frame;
+  const size_t scored_end =
+      setup.scored_frames == 0 ? frames.size() : std::min(frames.size(), scored_begin + setup.scored_frames);
+  if (scored_begin >= frames.size()) {
+    throw InputError(fmt::format("--skip-frames {}: the capture has only {} frame{}", scored_begin, frames.size(),
+                                 frames.size() == 1 ? "" : "s"));
+  }
   const BeamProjector projector(metadata);
   const MapReferences references(frames, projector, setup.neighbour_frames);
   const PacketFormat packets(format);
@@ -328,7 +335,8 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
     const FramePoints& f = frames[k];
     MapExclusions& c = counts[k];
     std::vector<Eigen::Vector3d> points;
-    for (int m = 0; m < f.width; ++m) {
+    const int width = k >= scored_begin && k < scored_end ? f.width : 0;  // a reference only
+    for (int m = 0; m < width; ++m) {
       for (int r = 0; r < f.height; ++r) {
         const size_t i = f.index(m, r);
         if (!f.returned(i) || static_cast<double>(f.range_m[i]) > setup.max_range_m) continue;
@@ -394,7 +402,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
     for (size_t n = 0; n < kept[k].size(); ++n) {
       const Kept& pixel = kept[k][n];
       const size_t p = offsets[k] + n;
-      t.set_measured(p, static_cast<uint32_t>(k), scan, pixel.m, pixel.r);
+      t.set_measured(p, static_cast<uint32_t>(k - scored_begin), scan, pixel.m, pixel.r);
       IdealReturn ideal;
       ideal.range_m = pixel.reference.range_m;
       ideal.cos_incidence = pixel.reference.cos_incidence;

@@ -45,76 +45,81 @@ void write_json(const fs::path& path, const nlohmann::json& json) {
   if (!out) throw InputError(path.string() + ": write failed");
 }
 
-int run_compare(const CompareFlags& flags) {
+// The profiles to compare, each with its chain (a unit's metadata: its twin's chain).
+struct Profiles {
   std::vector<SensorProfile> profiles;
   std::vector<EffectChain> chains;
-  for (const std::string& name : flags.profiles) {
-    profiles.push_back(load_sensor(name).profile);  // a unit's metadata: its twin's chain
-    chains.push_back(EffectChain::from_json(profiles.back().effects, "profile " + profiles.back().name + ": /effects"));
+};
+Profiles load_profiles(const std::vector<std::string>& names) {
+  Profiles out;
+  for (const std::string& name : names) {
+    out.profiles.push_back(load_sensor(name).profile);
+    const SensorProfile& profile = out.profiles.back();
+    out.chains.push_back(EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects"));
   }
-  Steps steps;
-  const Measured measured = measure(flags.measured, profiles.front(), chains.front(), steps);
-  const std::string capture_name = measured.inputs["capture"].get<std::string>();
+  return out;
+}
+
+// Every profile scored on the same pixels (the waterfall); the misfit is the last one's, whose
+// table and scores are returned (the first profile's table is the measured one, not copied).
+struct Scored {
+  PixelTable other;  // a later profile's predictions
+  const PixelTable* table = nullptr;
+  PixelScores scores;
+};
+void score_profiles(const CompareFlags& flags, const Measured& measured, const Profiles& p, CompareResult& result,
+                    Scored& scored, Steps& steps) {
   MisfitOptions options;
   options.alpha = flags.alpha;
-  // Several profiles: each scored on the same pixels (the waterfall); the report is of the last.
-  std::vector<WaterfallStep> waterfall;
-  PixelTable other;  // a later profile's predictions (the first profile's table is not copied)
-  const PixelTable* current = &measured.table;
-  PixelScores scores;
-  Misfit misfit;
-  for (size_t k = 0; k < profiles.size(); ++k) {
-    steps.start(profiles.size() > 1 ? "scoring and binning, profile by profile" : "scoring and binning");
+  scored.table = &measured.table;
+  for (size_t k = 0; k < p.profiles.size(); ++k) {
+    steps.start(p.profiles.size() > 1 ? "scoring and binning, profile by profile" : "scoring and binning");
     if (k > 0) {
-      other = repredicted(measured.table, chains[k]);
-      current = &other;
+      scored.other = repredicted(measured.table, p.chains[k]);
+      scored.table = &scored.other;
     }
-    const PixelTable& table = *current;
-    scores = score_pixels(table, flags.seed);
-    misfit = find_misfit(table, scores, measured.capture.frames.size(), options);
-    waterfall.push_back(waterfall_step(profiles[k].name, table, misfit));
+    scored.scores = score_pixels(*scored.table, flags.seed);
+    result.misfit = find_misfit(*scored.table, scored.scores, measured.capture.frames.size(), options);
+    result.waterfall.push_back(waterfall_step(p.profiles[k].name, *scored.table, result.misfit));
     steps.done();
   }
-  const SensorProfile& profile = profiles.back();
-  const EffectChain& chain = chains.back();
-  const PixelTable& table = *current;
+}
 
-  fs::create_directories(flags.out);
-  nlohmann::json inputs = measured.inputs;
-  inputs["seed"] = flags.seed;
-  inputs["profile"] = profile.name;
-  nlohmann::json report = compare_report(misfit, inputs, flags.alpha);
-  if (waterfall.size() > 1) report["waterfall"] = waterfall_json(waterfall);
-  std::optional<Diagnosis> diagnosis;
-  if (flags.diagnose) {
-    steps.start("diagnosing: fitting each library effect the profile lacks");
-    DiagnoseOptions diagnose_options;
-    diagnose_options.alpha = flags.alpha;
-    diagnose_options.refit_profile = !flags.keep_profile;
-    diagnose_options.refit_range_noise = flags.refit_noise;
-    diagnose_options.datasheet_noise = datasheet_range_noise(profile.prod_line);
-    diagnosis = lidartwin::diagnose(table, chain, misfit, diagnose_options);
-    report["diagnosis"] = diagnosis_json(*diagnosis);
-    steps.done();
-  }
-  write_json(fs::path(flags.out) / "report.json", report);
-  steps.start("writing pixels.npz");
-  write_pixels_npz(fs::path(flags.out) / "pixels.npz", table, scores);
+Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, const SensorProfile& profile,
+                        const EffectChain& chain, const Misfit& misfit, Steps& steps) {
+  steps.start("diagnosing: fitting each library effect the profile lacks");
+  DiagnoseOptions options;
+  options.alpha = flags.alpha;
+  options.refit_profile = !flags.keep_profile;
+  options.refit_range_noise = flags.refit_noise;
+  options.datasheet_noise = datasheet_range_noise(profile.prod_line);
+  Diagnosis diagnosis = lidartwin::diagnose(table, chain, misfit, options);
   steps.done();
+  return diagnosis;
+}
 
-  const MisfitSummary& s = misfit.summary;
-  std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
-              capture_name.c_str(), profile.name.c_str());
-  if (measured.registration) {
-    const FrameRegistration& r = *measured.registration;
-    measured.registration->trajectory.save_tum(fs::path(flags.out) / "registered_poses.tum");
+// DIR/report.json, DIR/pixels.npz and, for registered frames, DIR/registered_poses.tum.
+void write_outputs(const CompareFlags& flags, const CompareResult& result, const Scored& scored, Steps& steps) {
+  fs::create_directories(flags.out);
+  write_json(fs::path(flags.out) / "report.json", report_json(result));
+  steps.start("writing pixels.npz");
+  write_pixels_npz(fs::path(flags.out) / "pixels.npz", *scored.table, scored.scores);
+  steps.done();
+  if (result.inputs.registration) {
+    result.inputs.registration->trajectory.save_tum(fs::path(flags.out) / "registered_poses.tum");
+  }
+}
+
+void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
+  if (in.registration) {
+    const FrameRegistration& r = *in.registration;
     std::printf(
         "frames registered to each other: the sensor travelled %.2f m; %zu point-to-plane pairs, RMS %.1f mm after "
         "%d iterations (%s/registered_poses.tum)\n",
         r.path_length_m, r.pairs, 1000 * r.rms_m, r.iterations, flags.out.c_str());
   }
-  if (measured.map) {
-    const MapExclusions& x = *measured.map;
+  if (in.map) {
+    const MapExclusions& x = *in.map;
     const auto share = [&](size_t n) { return x.returns > 0 ? 100.0 * static_cast<double>(n) / x.returns : 0.0; };
     std::printf(
         "map: %zu of %zu returns compared (%.1f %%); left out: %zu beside depth steps, %zu with too few points of "
@@ -122,14 +127,18 @@ int run_compare(const CompareFlags& flags) {
         "incidence\n",
         x.compared, x.returns, share(x.compared), x.edge, x.unsupported, x.not_surface, x.off_surface, x.grazing);
   }
-  if (measured.refinement) {
-    const PoseRefinement& r = *measured.refinement;
+  if (in.pose_refinement) {
+    const PoseRefinement& r = *in.pose_refinement;
     std::printf(
         "pose refined on %zu points: sensor moved by (%+.4f, %+.4f, %+.4f) m, rotated by %.4f deg; "
         "point-to-plane RMS %.1f -> %.1f mm\n",
         r.points, r.sensor_shift_m.x(), r.sensor_shift_m.y(), r.sensor_shift_m.z(), r.rotation_deg,
         1000 * r.rms_before_m, 1000 * r.rms_after_m);
   }
+}
+
+void print_misfit(const CompareFlags& flags, const Misfit& misfit) {
+  const MisfitSummary& s = misfit.summary;
   std::printf("NLL per pixel %.4f, expected %.4f +- %.4f if the model were true (%+.1f standard errors)\n",
               s.nll_per_pixel, s.nll_expected, s.nll_se,
               s.nll_se > 0 ? (s.nll_per_pixel - s.nll_expected) / s.nll_se : 0.0);
@@ -137,47 +146,74 @@ int run_compare(const CompareFlags& flags) {
               100 * s.detection_measured, 100 * s.detection_predicted, s.z_mean, s.z_std, s.pit_uniformity_p);
   if (misfit.failing.empty()) {
     std::printf("no region fails at alpha %g (%zu tests, Bonferroni-corrected)\n", flags.alpha, s.tests);
-  } else {
-    std::printf("%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected); worst first:\n",
-                misfit.failing.size(), flags.alpha, s.tests);
-    for (size_t i = 0; i < std::min(flags.show, misfit.failing.size()); ++i) {
-      std::printf("  %2zu. [%s] %s\n", i + 1, misfit.failing[i].quantity.c_str(), misfit.failing[i].sentence.c_str());
-    }
+    return;
   }
-  if (diagnosis) {
-    std::printf("diagnosis on %zu pixels: %s\n", diagnosis->pixels, diagnosis->verdict.c_str());
-    for (const ParameterMisfit& m : diagnosis->parameter_misfit) {
-      std::string changes;
-      for (const FittedParameter& p : m.refit.params) {
-        const auto old =
-            std::find_if(m.old_values.begin(), m.old_values.end(), [&](const auto& o) { return o.first == p.name; });
-        changes += fmt::format(" {} {:.4g} -> {:.4g}", p.name, old == m.old_values.end() ? 0.0 : old->second, p.value);
-      }
-      std::printf("  refitted %s (%s channel): delta BIC %+.1f;%s\n", m.refit.effect.c_str(), m.channel.c_str(),
-                  m.refit.delta_bic, changes.c_str());
-    }
-    for (size_t i = 0; i < std::min<size_t>(diagnosis->ranked.size(), 5); ++i) {
-      const Candidate& c = diagnosis->ranked[i];
-      std::string params;
-      for (const FittedParameter& p : c.params) params += fmt::format(" {}={:.4g}", p.name, p.value);
-      std::printf("  %s (%s): delta BIC %+.1f, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
-                  c.p_value, params.c_str());
-    }
-    for (const Replacement& r : diagnosis->replace) std::printf("  replace: %s\n", r.sentence.c_str());
-    for (const Candidate& c : diagnosis->selected) std::printf("  selected: %s\n", c.effect.c_str());
-    for (const SharedMisfit& shared : diagnosis->shared) std::printf("  %s\n", shared.sentence.c_str());
-    for (const NotSelected& n : diagnosis->not_selected) std::printf("  %s\n", n.sentence.c_str());
-    for (const UnexplainedMisfit& u : diagnosis->unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
+  std::printf("%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected); worst first:\n",
+              misfit.failing.size(), flags.alpha, s.tests);
+  for (size_t i = 0; i < std::min(flags.show, misfit.failing.size()); ++i) {
+    std::printf("  %2zu. [%s] %s\n", i + 1, misfit.failing[i].quantity.c_str(), misfit.failing[i].sentence.c_str());
   }
-  if (waterfall.size() > 1) {
-    std::printf("the error across the profiles (same pixels):\n  %-24s %12s %10s %10s %8s %10s %8s\n", "profile",
-                "NLL/pixel", "excess SE", "bias RMS", "spread", "det. loss", "failing");
-    for (const WaterfallStep& w : waterfall) {
-      std::printf("  %-24s %12.4f %+10.1f %8.1f mm %8.2f %10.4f %8zu\n", w.profile.c_str(), w.nll_per_pixel,
-                  w.nll_se > 0 ? (w.nll_per_pixel - w.nll_expected) / w.nll_se : 0.0, 1000 * w.bias_rms_m,
-                  w.spread_ratio_median, w.detection_log_loss, w.failing);
+}
+
+void print_diagnosis(const Diagnosis& diagnosis) {
+  std::printf("diagnosis on %zu pixels: %s\n", diagnosis.pixels, diagnosis.verdict.c_str());
+  for (const ParameterMisfit& m : diagnosis.parameter_misfit) {
+    std::string changes;
+    for (const FittedParameter& p : m.refit.params) {
+      const auto old =
+          std::find_if(m.old_values.begin(), m.old_values.end(), [&](const auto& o) { return o.first == p.name; });
+      changes += fmt::format(" {} {:.4g} -> {:.4g}", p.name, old == m.old_values.end() ? 0.0 : old->second, p.value);
     }
+    std::printf("  refitted %s (%s channel): delta BIC %+.1f;%s\n", m.refit.effect.c_str(), m.channel.c_str(),
+                m.refit.delta_bic, changes.c_str());
   }
+  for (size_t i = 0; i < std::min<size_t>(diagnosis.ranked.size(), 5); ++i) {
+    const Candidate& c = diagnosis.ranked[i];
+    std::string params;
+    for (const FittedParameter& p : c.params) params += fmt::format(" {}={:.4g}", p.name, p.value);
+    std::printf("  %s (%s): delta BIC %+.1f, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
+                c.p_value, params.c_str());
+  }
+  for (const Replacement& r : diagnosis.replace) std::printf("  replace: %s\n", r.sentence.c_str());
+  for (const Candidate& c : diagnosis.selected) std::printf("  selected: %s\n", c.effect.c_str());
+  for (const SharedMisfit& shared : diagnosis.shared) std::printf("  %s\n", shared.sentence.c_str());
+  for (const NotSelected& n : diagnosis.not_selected) std::printf("  %s\n", n.sentence.c_str());
+  for (const UnexplainedMisfit& u : diagnosis.unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
+}
+
+void print_waterfall(const std::vector<WaterfallStep>& waterfall) {
+  std::printf("the error across the profiles (same pixels):\n  %-24s %12s %10s %10s %8s %10s %8s\n", "profile",
+              "NLL/pixel", "excess SE", "bias RMS", "spread", "det. loss", "failing");
+  for (const WaterfallStep& w : waterfall) {
+    std::printf("  %-24s %12.4f %+10.1f %8.1f mm %8.2f %10.4f %8zu\n", w.profile.c_str(), w.nll_per_pixel,
+                w.nll_se > 0 ? (w.nll_per_pixel - w.nll_expected) / w.nll_se : 0.0, 1000 * w.bias_rms_m,
+                w.spread_ratio_median, w.detection_log_loss, w.failing);
+  }
+}
+
+int run_compare(const CompareFlags& flags) {
+  const Profiles p = load_profiles(flags.profiles);
+  Steps steps;
+  const Measured measured = measure(flags.measured, p.profiles.front(), p.chains.front(), steps);
+  CompareResult result;
+  result.inputs = measured.inputs;
+  result.inputs.seed = flags.seed;
+  result.inputs.profile = p.profiles.back().name;  // the report is of the last profile
+  result.alpha = flags.alpha;
+  Scored scored;
+  score_profiles(flags, measured, p, result, scored, steps);
+  if (flags.diagnose) {
+    result.diagnosis = diagnose_last(flags, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
+  }
+  write_outputs(flags, result, scored, steps);
+
+  const MisfitSummary& s = result.misfit.summary;
+  std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
+              result.inputs.capture.c_str(), result.inputs.profile.c_str());
+  print_inputs(flags, result.inputs);
+  print_misfit(flags, result.misfit);
+  if (result.diagnosis) print_diagnosis(*result.diagnosis);
+  if (result.waterfall.size() > 1) print_waterfall(result.waterfall);
   std::string plots = "report.html not written (--no-plots)";
   if (flags.plots) {
     steps.start("plotting report.html");

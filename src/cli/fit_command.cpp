@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -65,10 +66,48 @@ nlohmann::json fit_notes(const Fitted& fitted, const Measured& measured, size_t 
   }
   for (const Candidate& c : fitted.added) effects.push_back(note(c));
   return {{"comment", "written by lidartwin fit: effects added or replaced and fitted by maximum likelihood"},
-          {"capture", measured.inputs["capture"]},
-          {"frames", measured.inputs["frames"]},
+          {"capture", measured.inputs.capture},
+          {"frames", measured.inputs.frames},
           {"pixels", pixels},
           {"effects", effects}};
+}
+
+// Where a fitted effect's parameters came from, in the words a profile's "source" uses.
+std::string fit_source(const Candidate& c, const Measured& measured, size_t pixels) {
+  const CompareInputs& in = measured.inputs;
+  const PixelTable::Reference reference = measured.table.reference;
+  const std::string mode = reference == PixelTable::Reference::kMap            ? " --map"
+                           : reference == PixelTable::Reference::kTemporalMean ? " --static"
+                                                                               : "";
+  std::string out =
+      fmt::format("lidartwin fit{} on {} (frames {}-{}, {} pixels):", mode, fs::path(in.capture).filename().string(),
+                  in.skipped_frames, in.skipped_frames + in.frames - 1, pixels);
+  for (const FittedParameter& p : c.params) {
+    out += fmt::format(" {} {:.4g} (95 %: {:.4g}-{:.4g})", p.name, p.value, p.ci95_lo, p.ci95_hi);
+  }
+  return out + fmt::format(", delta BIC {:+.0f}", c.delta_bic);
+}
+
+// Each effect's "source": this fit's for what it fitted, the profile's own for what it kept.
+void attach_sources(nlohmann::json& effects, const nlohmann::json& before, const Fitted& fitted,
+                    const Measured& measured, size_t pixels) {
+  std::map<std::string, std::string> fitted_now;
+  for (const Candidate& c : fitted.refits) fitted_now[c.effect] = fit_source(c, measured, pixels);
+  for (const Replacement& r : fitted.replaced) {
+    fitted_now[r.with.effect] = fit_source(r.with, measured, pixels) + ", in place of " + r.effect;
+  }
+  for (const Candidate& c : fitted.added) fitted_now[c.effect] = fit_source(c, measured, pixels);
+  for (nlohmann::json& effect : effects) {
+    const std::string name = effect["name"].get<std::string>();
+    if (const auto found = fitted_now.find(name); found != fitted_now.end()) {
+      effect["source"] = found->second;
+      continue;
+    }
+    if (!before.is_array()) continue;
+    for (const nlohmann::json& old : before) {
+      if (old.is_object() && old.value("name", "") == name && old.contains("source")) effect["source"] = old["source"];
+    }
+  }
 }
 
 // --replace OLD=NEW, as pairs.
@@ -142,6 +181,8 @@ int run_fit(const FitFlags& flags) {
   // The profile file as it is (a twin's as made from its unit), with the fitted chain and the notes.
   nlohmann::json document = sensor.document;
   document["effects"] = fitted.chain.to_json();
+  attach_sources(document["effects"], sensor.document.value("effects", nlohmann::json()), fitted, measured,
+                 measured.table.size());
   document["fit"] = fit_notes(fitted, measured, measured.table.size());
   if (fs::path(flags.out).has_parent_path()) fs::create_directories(fs::path(flags.out).parent_path());
   std::ofstream out(flags.out);

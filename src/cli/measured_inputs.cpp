@@ -115,33 +115,29 @@ void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, cons
     steps.start("registering the frames to each other");
     RegistrationOptions options;
     options.max_range_m = profile.max_range_m;
-    out.registration = register_frames(out.capture, pool, options);
-    const Trajectory& trajectory = out.registration->trajectory;
+    out.inputs.registration = register_frames(out.capture, pool, options);
+    const Trajectory& trajectory = out.inputs.registration->trajectory;
     const PoseSpan span{trajectory.start_s(), trajectory.start_s() + trajectory.duration_s()};
     poses = std::make_unique<TrajectoryPoses>(trajectory, span);
     steps.done();
   }
   steps.start("fitting each return's surface from the other frames and predicting it");
   MapTableSetup setup{out.capture, *poses, in.pose.empty() ? 0.0 : flags.time_offset_s, chain, profile.max_range_m};
+  setup.first_scored_frame = flags.skip_frames;
+  setup.scored_frames = flags.frames;
   setup.progress = [&steps](double fraction) {
     steps.progress("fitting each return's surface from the other frames and predicting it", fraction);
   };
   MapTable map = build_map_table(setup, pool);
   steps.done();
   out.table = std::move(map.table);
-  out.map = map.excluded;
-}
-
-nlohmann::json refinement_json(const PoseRefinement& r) {
-  const Eigen::Vector3d t = r.correction.translation;
-  const Eigen::Quaterniond q = r.correction.rotation;
-  return {{"correction", {{"translation_m", {t.x(), t.y(), t.z()}}, {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
-          {"sensor_shift_m", {r.sensor_shift_m.x(), r.sensor_shift_m.y(), r.sensor_shift_m.z()}},
-          {"rotation_deg", r.rotation_deg},
-          {"rms_before_m", r.rms_before_m},
-          {"rms_after_m", r.rms_after_m},
-          {"points", r.points},
-          {"iterations", r.iterations}};
+  out.inputs.map = map.excluded;
+  // From here on the capture is the frames scored, as --frames and --skip-frames read it elsewhere.
+  std::vector<BatchedFrame>& frames = out.capture.frames;
+  const size_t end = flags.frames == 0 ? frames.size() : std::min(frames.size(), flags.skip_frames + flags.frames);
+  frames.erase(frames.begin() + static_cast<std::ptrdiff_t>(end), frames.end());
+  frames.erase(frames.begin(), frames.begin() + static_cast<std::ptrdiff_t>(flags.skip_frames));
+  out.capture.skipped_frames = flags.skip_frames;
 }
 
 }  // namespace
@@ -161,7 +157,8 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
           ->capture_default_str();
   sub->add_option("--frames", flags.frames, "use at most this many frames (0 = all)")->capture_default_str();
   sub->add_option("--skip-frames", flags.skip_frames,
-                  "leave out this many frames at the start (e.g. those a fit used: compare on held-out frames)")
+                  "leave out this many frames at the start (e.g. those a fit used: compare on held-out frames); "
+                  "with --map the frames left out still make the reference surfaces")
       ->capture_default_str();
   sub->add_option("--threads", flags.threads, "threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
@@ -210,7 +207,10 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   const Inputs in = resolve_inputs(flags);
   Measured out;
   steps.start("reading the capture");
-  out.capture = read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
+  // Map mode reads every frame: those not scored (--skip-frames, beyond --frames) still make the
+  // surfaces the scored ones are judged against.
+  out.capture = flags.map_mode ? read_capture(in.capture, in.metadata)
+                               : read_capture(in.capture, in.metadata, flags.frames, flags.skip_frames);
   steps.done();
   if (flags.static_mode) {
     out.table = build_static_table({out.capture, chain, profile.max_range_m});
@@ -219,38 +219,21 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   } else {
     SceneComparison compared = scene_table(flags, in, out.capture, chain, profile, steps);
     out.table = std::move(compared.table);
-    out.refinement = compared.refinement;
+    out.inputs.pose_refinement = compared.refinement;
   }
   const LidarDataFormat& format = out.capture.metadata.format;
-  out.inputs = {{"capture", in.capture.string()},
-                {"metadata", in.metadata.string()},
-                {"scene", flags.scene},
-                {"pose", in.pose.string()},
-                {"static", flags.static_mode},
-                {"map", flags.map_mode},
-                {"profile", profile.name},
-                {"time_offset_s", flags.time_offset_s},
-                {"frames", out.capture.frames.size()},
-                {"skipped_frames", out.capture.skipped_frames},
-                {"lidar_mode", to_string(LidarMode{format.columns_per_frame, format.fps})},
-                {"udp_profile_lidar", to_string(format.udp_profile_lidar)}};
-  if (out.refinement) out.inputs["pose_refinement"] = refinement_json(*out.refinement);
-  if (out.registration) {
-    const FrameRegistration& r = *out.registration;
-    out.inputs["registration"] = {
-        {"iterations", r.iterations}, {"pairs", r.pairs}, {"rms_m", r.rms_m}, {"path_length_m", r.path_length_m}};
-  }
-  if (out.map) {
-    const MapExclusions& x = *out.map;
-    out.inputs["map"] = {{"returns", x.returns},
-                         {"compared", x.compared},
-                         {"excluded",
-                          {{"edge", x.edge},
-                           {"unsupported", x.unsupported},
-                           {"not_surface", x.not_surface},
-                           {"off_surface", x.off_surface},
-                           {"grazing", x.grazing}}}};
-  }
+  CompareInputs& inputs = out.inputs;
+  inputs.capture = in.capture.string();
+  inputs.metadata = in.metadata.string();
+  inputs.scene = flags.scene;
+  inputs.pose = in.pose.string();
+  inputs.static_mode = flags.static_mode;
+  inputs.map_mode = flags.map_mode;
+  inputs.time_offset_s = flags.time_offset_s;
+  inputs.frames = out.capture.frames.size();
+  inputs.skipped_frames = out.capture.skipped_frames;
+  inputs.lidar_mode = to_string(LidarMode{format.columns_per_frame, format.fps});
+  inputs.udp_profile_lidar = to_string(format.udp_profile_lidar);
   return out;
 }
 

@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "lidartwin/analysis/compare_report.h"
 #include "lidartwin/analysis/frame_registration.h"
 #include "lidartwin/analysis/map_table.h"
 #include "lidartwin/analysis/measured_capture.h"
@@ -50,15 +51,13 @@ class Steps {
   std::chrono::steady_clock::time_point started_;
 };
 
-// The capture, its pixel table and, with --refine-pose, the correction; `inputs` describes them
-// for report.json. Throws InputError for every input that does not fit (see compare's tests).
+// The capture, its pixel table and what was compared (with --refine-pose the correction, with --map
+// the registration and what was left out). Throws InputError for every input that does not fit
+// (see compare's tests).
 struct Measured {
   MeasuredCapture capture;
   PixelTable table;
-  std::optional<PoseRefinement> refinement;
-  std::optional<FrameRegistration> registration;  // --map without --pose
-  std::optional<MapExclusions> map;               // --map: what was compared and what left out
-  nlohmann::json inputs;
+  CompareInputs inputs;  // but its profile and seed, which are the command's
 };
 Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const EffectChain& chain, Steps& steps);
 

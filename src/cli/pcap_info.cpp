@@ -57,6 +57,10 @@ void tally_frame(const BatchedFrame& batched, FrameTally& frame) {
     frame.pixels += range.size();
     frame.returns +=
         static_cast<uint64_t>(std::count_if(range.begin(), range.end(), [](uint32_t r) { return r != 0; }));
+    if (!scan.has(ChannelField::kRange2)) continue;
+    const auto range2 = scan.column(ChannelField::kRange2, m);
+    frame.second_returns +=
+        static_cast<uint64_t>(std::count_if(range2.begin(), range2.end(), [](uint32_t r) { return r != 0; }));
   }
 }
 
@@ -73,6 +77,7 @@ LidarSummary summarize_lidar(const std::vector<UdpDatagram>& datagrams, const Me
   LidarSummary summary;
   summary.port = config_port(metadata, "udp_port_lidar");
   summary.packet_size = format.lidar_packet_size();
+  summary.dual = format.has_channel(ChannelField::kRange2);
   const uint16_t imu_port = config_port(metadata, "udp_port_imu");
   for (const UdpDatagram& d : datagrams) {
     if (d.dst_port == imu_port && d.payload.size() == format.imu_packet_size()) ++summary.imu_packets;

@@ -20,6 +20,7 @@ struct FrameTally {
   std::vector<bool> valid_columns;  // status bit 0, by measurement id
   uint64_t pixels = 0;              // pixels of valid columns
   uint64_t returns = 0;             // ... whose first range is non-zero
+  uint64_t second_returns = 0;      // ... whose second range is non-zero (dual-return profiles)
 };
 
 struct LidarSummary {
@@ -34,6 +35,7 @@ struct LidarSummary {
   size_t crc_ok = 0;  // footers with a matching CRC-64
   size_t crc_failed = 0;
   size_t without_crc = 0;                 // FW 2 marker or zero footers (protocol doc 4.5)
+  bool dual = false;                      // the profile carries second returns
   std::map<uint32_t, FrameTally> frames;  // by frame_id
   size_t imu_packets = 0;                 // on udp_port_imu, of the IMU packet size
 };

@@ -50,13 +50,14 @@ void print_frames(const LidarSummary& s) {
   std::cout << "frames: " << s.frames.size() << "\n";
   if (s.frames.empty()) return;
   size_t min_columns = SIZE_MAX, max_columns = 0;
-  uint64_t pixels = 0, returns = 0;
+  uint64_t pixels = 0, returns = 0, second_returns = 0;
   for (const auto& [id, frame] : s.frames) {
     const auto columns = static_cast<size_t>(std::count(frame.valid_columns.begin(), frame.valid_columns.end(), true));
     min_columns = std::min(min_columns, columns);
     max_columns = std::max(max_columns, columns);
     pixels += frame.pixels;
     returns += frame.returns;
+    second_returns += frame.second_returns;
   }
   std::cout << "frame ids: " << s.frames.begin()->first << " .. " << s.frames.rbegin()->first << "\n"
             << "valid columns per frame: " << min_columns;
@@ -64,6 +65,11 @@ void print_frames(const LidarSummary& s) {
   std::printf("\nvalid pixel fraction: %.4f (range != 0 among %llu pixels of valid columns)\n",
               pixels ? static_cast<double>(returns) / static_cast<double>(pixels) : 0.0,
               static_cast<unsigned long long>(pixels));
+  if (s.dual) {
+    std::printf("second returns: %.4f of returns (range2 != 0: %llu)\n",
+                returns ? static_cast<double>(second_returns) / static_cast<double>(returns) : 0.0,
+                static_cast<unsigned long long>(second_returns));
+  }
 }
 
 void print_lidar(const Metadata& m, const LidarSummary& s) {

@@ -69,7 +69,17 @@ EffectChain EffectChain::from_json(const nlohmann::json& document, std::string_v
   if (!document.is_array()) fail(source, "must be an array of effects [{\"name\": ...}, ...]");
   EffectChain chain;
   for (size_t i = 0; i < document.size(); ++i) {
-    std::unique_ptr<Effect> effect = build_effect(document[i], json_path(source, std::to_string(i)));
+    const std::string where = json_path(source, std::to_string(i));
+    // "source": where the effect's parameters came from (a datasheet, a fit on a capture): for
+    // people, not for the effect, which never sees it.
+    nlohmann::json params = document[i];
+    if (params.is_object()) {
+      if (const auto origin = params.find("source"); origin != params.end()) {
+        if (!origin->is_string()) fail(json_path(where, "source"), "must be a string (where the parameters came from)");
+        params.erase(origin);
+      }
+    }
+    std::unique_ptr<Effect> effect = build_effect(params, where);
     effect->set_stream_id(stream_id_for(effect->name(), i));
     chain.effects_.push_back(std::move(effect));
   }

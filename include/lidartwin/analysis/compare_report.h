@@ -1,13 +1,19 @@
 #pragma once
 // What `compare` writes: DIR/report.json (schema: docs/compare-report.md) and DIR/pixels.npz.
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "lidartwin/analysis/diagnosis.h"
+#include "lidartwin/analysis/frame_registration.h"
+#include "lidartwin/analysis/map_table.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/analysis/pixel_table.h"
+#include "lidartwin/analysis/pose_refinement.h"
 
 namespace lidartwin {
 
@@ -26,8 +32,31 @@ struct WaterfallStep {
 WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit);
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps);
 
-// inputs: what was compared (paths, pose offset, profile name…), copied into the report as given.
-nlohmann::json compare_report(const Misfit& misfit, const nlohmann::json& inputs, double alpha);
+// What was compared: report.json's "inputs".
+struct CompareInputs {
+  std::string capture, metadata, scene, pose;  // as given (a pose found beside a record directory's capture)
+  bool static_mode = false;
+  bool map_mode = false;
+  std::string profile;  // the profile the report is of (a waterfall's last)
+  double time_offset_s = 0.0;
+  size_t frames = 0;  // scored
+  size_t skipped_frames = 0;
+  std::string lidar_mode, udp_profile_lidar;
+  uint64_t seed = 0;                              // of the randomised PIT
+  std::optional<PoseRefinement> pose_refinement;  // --refine-pose
+  std::optional<FrameRegistration> registration;  // --map without --pose
+  std::optional<MapExclusions> map;               // --map: what was compared and what left out
+};
+
+// Everything `compare` found; report.json is this, written by report_json alone.
+struct CompareResult {
+  CompareInputs inputs;
+  Misfit misfit;  // of the report's profile
+  double alpha = 0.01;
+  std::vector<WaterfallStep> waterfall;  // every profile's row; written when there are several
+  std::optional<Diagnosis> diagnosis;    // --diagnose
+};
+nlohmann::json report_json(const CompareResult& result);
 
 // Every column of the table and of the scores, one array each (names: docs/compare-report.md).
 void write_pixels_npz(const std::filesystem::path& path, const PixelTable& table, const PixelScores& scores);

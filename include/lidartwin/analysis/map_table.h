@@ -27,6 +27,11 @@ struct MapTableSetup {
   const EffectChain& chain;
   double max_range_m = 100.0;
   int neighbour_frames = 3;  // frames on each side whose points make a pixel's reference
+  // The frames whose returns are scored (the table's frame 0 is first_scored_frame); every frame
+  // of the capture makes references. A fit on some frames and a judgement on the others (held-out
+  // frames) then both see surfaces made of the whole capture.
+  size_t first_scored_frame = 0;
+  size_t scored_frames = 0;  // 0: all from first_scored_frame on
   std::function<void(double fraction)> progress = nullptr;
 };
 
