@@ -12,6 +12,7 @@
 // returns both judged (tests/tools/same_returns_spread.py, from the two pixels.npz), binned by the
 // scene's range and reflectivity; the reports' own bins are compared where the profile is the
 // recording's, whose spread ratio is 1 whatever the mix.
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -26,6 +27,7 @@
 #include <nlohmann/json.hpp>
 
 #include "support/cli_run.h"
+#include "support/table_profile.h"
 
 namespace fs = std::filesystem;
 
@@ -48,16 +50,23 @@ nlohmann::json read_json(const fs::path& path) {
 }
 
 // The shipped os1-64 profile with its table effects only (radiometry, the datasheet's sigma(r),
-// limits, quantization) and, when given, one effect more: what a capture is recorded with.
+// limits, quantization: support/table_profile.h) and, when given, one effect more: what a capture
+// is recorded with.
 fs::path os1_64_with(const fs::path& dir, const std::string& name, const nlohmann::json& extra) {
   std::ifstream in(kSource + "/profiles/os1-64.json");
   nlohmann::json profile = nlohmann::json::parse(in);
-  nlohmann::json kept = nlohmann::json::array();
-  for (const auto& effect : profile["effects"]) {
-    if (effect["name"] == "range_limits" && !extra.is_null()) kept.push_back(extra);
-    if (effect["name"] != "incidence" && effect["name"] != "dropout") kept.push_back(effect);
+  table_profiles::keep_table_effects(profile["effects"]);
+  // The datasheet's radiometry, not the real OS-1-128 sample's sunlit ambient (2571 photons): the
+  // hidden E2's k of 0.2 m is sized for it (at that ambient it would make most returns outliers).
+  for (auto& effect : profile["effects"]) {
+    if (effect["name"] == "radiometry") effect = {{"name", "radiometry"}};
   }
-  profile["effects"] = kept;
+  if (!extra.is_null()) {
+    auto& effects = profile["effects"];
+    const auto limits =
+        std::find_if(effects.begin(), effects.end(), [](const auto& e) { return e["name"] == "range_limits"; });
+    effects.insert(limits, extra);
+  }
   const fs::path path = dir / (name + ".json");
   std::ofstream(path) << profile.dump(2);
   return path;
