@@ -207,6 +207,7 @@ void write_pixels_npz(const std::filesystem::path& path, const PixelTable& t, co
   npz.add("window_min_m", std::span<const float>(t.window_min_m));
   npz.add("window_max_m", std::span<const float>(t.window_max_m));
   npz.add("step_m", std::span<const float>(t.step_m));
+  npz.add("reference_variance_m2", std::span<const float>(t.reference_variance_m2));  // map mode: its own error
   npz.add("nll", std::span<const float>(s.nll));
   npz.add("nll_expected", std::span<const float>(s.nll_expected));
   npz.add("z", std::span<const float>(s.z));

@@ -59,6 +59,8 @@ struct Acc {
   double pd = 0, pd_var = 0;
   double z = 0, e = 0, eb = 0, eb2 = 0, bias = 0, sigma2 = 0, sheppard = 0;
   double dof = 0, wz2 = 0;  // degrees of freedom and the z^2 they weigh (PixelTable::dof_share)
+  double reference2 = 0;    // the reference's own variance (map mode), taken out of the spreads
+  double model_dof = 0;     // dof less the reference's share of each pixel's variance (wz2 / model_dof)
   double outliers_expected = 0;
   double nll = 0, nll_expected = 0;
 };
@@ -85,7 +87,17 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   const double w = t.dof_share(i);
   a.z += z;
   a.dof += w;
-  a.wz2 += w * z * z;
+  // A map reference's own error (variance v, PixelTable::reference_variance_m2) is in the
+  // likelihood's sigma, sd = sqrt(sigma_model^2 + v), and in the measured residual. The spread judged
+  // is the sensor's own: v comes out of both, sum (z^2 - v / sd^2) / sum (1 - v / sd^2) having mean
+  // sigma_true^2 / sigma_model^2 (a ratio of sums: per pixel the difference would divide by a
+  // sigma_model^2 that v may dwarf). Left in, v would pull a wrong model's ratio toward 1 (sd^2 and
+  // the residual's variance share it), by 10 % where sigma is twice the model's and v a tenth of it.
+  const double reference2 = f64(t.reference_variance_m2[i]);
+  const double reference_share = std::min(reference2 / (sigma * sigma), 1.0);
+  a.wz2 += w * (z * z - reference_share);
+  a.model_dof += w * (1.0 - reference_share);
+  a.reference2 += reference2;
   a.e += e;
   a.eb += e - bias;
   a.eb2 += (e - bias) * (e - bias);
@@ -147,13 +159,13 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     const auto n = static_cast<double>(a.inliers);
     b.bias_measured_m = a.e / n;
     b.bias_predicted_m = a.bias / n;
-    b.spread_measured_m = std::sqrt(std::max(a.eb2 / n - (a.eb / n) * (a.eb / n), 0.0));
-    b.spread_predicted_m = std::sqrt(a.sigma2 / n);
+    b.spread_measured_m = std::sqrt(std::max(a.eb2 / n - (a.eb / n) * (a.eb / n) - a.reference2 / n, 0.0));
+    b.spread_predicted_m = std::sqrt(std::max(a.sigma2 - a.reference2, 0.0) / n);
     // z's variance under the model: 1, plus the quantization of the measured range (Sheppard).
     const double v = 1.0 + a.sheppard / n;
     const double z_mean = a.z / n;
     // Residuals about a temporal mean weigh by their share of the degrees of freedom (1 elsewhere).
-    const double ratio2 = std::max(a.wz2 / a.dof - z_mean * z_mean, 0.0) / v;
+    const double ratio2 = std::max(a.wz2 / a.model_dof - z_mean * z_mean, 0.0) / v;
     b.spread_ratio = std::sqrt(ratio2);
     b.misfit_bias = n * z_mean * z_mean / (2.0 * v);
     b.misfit_spread = ratio2 > 0.0 ? n * (-0.5 * std::log(ratio2) + 0.5 * ratio2 - 0.5) : 0.0;

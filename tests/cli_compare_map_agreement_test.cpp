@@ -1,0 +1,272 @@
+// `compare --map` proven on captures whose answer is known (issue 23): a drive through the plant
+// with the incidence effect (E4) hidden, one through the yard with signal-dependent precision (E2)
+// hidden, both recorded by `lidartwin record`, and a moving capture of the independent generator
+// (tests/tools/independent_capture.py) with E2 hidden. Each is compared with the profile that
+// lacks the hidden effect twice, with its scene and without (map mode, the frames placed by the
+// true trajectory), and the two must say the same: the spread per range and reflectivity bin, the
+// regions that fail, the effect the diagnosis names.
+//
+// The two reports bin different returns (map mode keeps those on smooth surfaces the other frames
+// saw: mostly the ground, at grazing incidence, where E2 and E4 are strongest), so their bins of
+// one range hold different mixes of incidence and signal. The spreads are therefore compared on the
+// returns both judged (tests/tools/same_returns_spread.py, from the two pixels.npz), binned by the
+// scene's range and reflectivity; the reports' own bins are compared where the profile is the
+// recording's, whose spread ratio is 1 whatever the mix.
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "support/cli_run.h"
+#include "support/table_profile.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kSource = LIDARTWIN_SOURCE_DIR;
+const std::string kPython = "/usr/bin/python3 ";
+
+using lidartwin::test::CliRun;
+using lidartwin::test::run_cli;
+
+// Bins holding fewer returns than this are not compared: their spread ratio is not known to 5 %
+// (a ratio from n returns has a relative standard error of 1/sqrt(2n) only for Gaussian residuals;
+// the hidden effects make them heavier-tailed, and a bin's mix varies with its few surfaces).
+constexpr size_t kMinInliers = 10000;
+
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+// The shipped os1-64 profile with its table effects only (radiometry, the datasheet's sigma(r),
+// limits, quantization: support/table_profile.h) and, when given, one effect more: what a capture
+// is recorded with.
+fs::path os1_64_with(const fs::path& dir, const std::string& name, const nlohmann::json& extra) {
+  std::ifstream in(kSource + "/profiles/os1-64.json");
+  nlohmann::json profile = nlohmann::json::parse(in);
+  table_profiles::keep_table_effects(profile["effects"]);
+  // The datasheet's radiometry, not the real OS-1-128 sample's sunlit ambient (2571 photons): the
+  // hidden E2's k of 0.2 m is sized for it (at that ambient it would make most returns outliers).
+  for (auto& effect : profile["effects"]) {
+    if (effect["name"] == "radiometry") effect = {{"name", "radiometry"}};
+  }
+  if (!extra.is_null()) {
+    auto& effects = profile["effects"];
+    const auto limits =
+        std::find_if(effects.begin(), effects.end(), [](const auto& e) { return e["name"] == "range_limits"; });
+    effects.insert(limits, extra);
+  }
+  const fs::path path = dir / (name + ".json");
+  std::ofstream(path) << profile.dump(2);
+  return path;
+}
+
+struct Judged {
+  std::string hidden;         // the effect the capture has and the profile lacks
+  nlohmann::json scene, map;  // the two report.json
+  nlohmann::json same;        // same_returns_spread.py on them
+  nlohmann::json registered;  // the same for map mode with the frames registered to each other
+};
+
+class MapAgreement : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::path(testing::TempDir()) / ("map_agreement_" + std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    table_ = os1_64_with(dir_, "os1-64", nullptr);
+    // 2.5 m/s and 10 deg/s, 1.7 m above the ground (a car's roof), 6 frames (1.5 m).
+    record("plant", "plant.glb", "12 9", "19.5 9", os1_64_with(dir_, "plant_e4", {{"name", "incidence"}}), "incidence");
+    record("yard", "yard.glb", "-4 -18", "3.5 -18",
+           os1_64_with(dir_, "yard_e2", {{"name", "signal_precision"}, {"k_m", 0.2}}), "signal_precision");
+    generate_independent();
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static void record(const std::string& name, const std::string& scene, const std::string& from, const std::string& to,
+                     const fs::path& profile, const std::string& hidden) {
+    const fs::path out = dir_ / name;
+    std::ofstream(dir_ / (name + ".tum"))
+        << "0 " << from << " 1.7 0 0 0 1\n3 " << to << " 1.7 0 0 0.0871557 0.9961947\n";
+    const CliRun r =
+        run_cli("record --profile " + profile.string() + " --scene " + kSource + "/scenes/" + scene + " --trajectory " +
+                (dir_ / (name + ".tum")).string() + " --uptime-s 0 --frames 6 --seed 5 --out " + out.string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    judge(name,
+          " --capture " + (out / "capture.pcap").string() + " --metadata " + (out / "metadata.json").string() +
+              " --pose " + (out / "poses.tum").string() + " --profile " + table_.string(),
+          " --scene " + kSource + "/scenes/" + scene, hidden);
+    // The frames registered to each other instead of placed by the trajectory (no --diagnose).
+    const fs::path registered = dir_ / (name + "_registered");
+    const CliRun m =
+        run_cli("compare --map --no-plots --capture " + (out / "capture.pcap").string() + " --metadata " +
+                (out / "metadata.json").string() + " --profile " + table_.string() + " --out " + registered.string());
+    ASSERT_EQ(m.exit_code, 0) << m.output;
+    judged_[name].registered = same_returns(name + "_scene", name + "_registered");
+  }
+
+  static nlohmann::json same_returns(const std::string& scene, const std::string& map) {
+    const fs::path same = dir_ / (map + "_same.json");
+    const std::string script = kPython + kSource + "/tests/tools/same_returns_spread.py " + (dir_ / scene).string() +
+                               " " + (dir_ / map).string() + " > " + same.string();
+    EXPECT_EQ(std::system(script.c_str()), 0) << script;
+    return read_json(same);
+  }
+
+  // Six walls of different reflectivity, moving at 1 m/s and 20 deg/s, spread following the SNR.
+  static void generate_independent() {
+    const fs::path out = dir_ / "independent";
+    const std::string generate = kPython + kSource + "/tests/tools/independent_capture.py " + out.string() +
+                                 " --frames 6 --seed 3 --velocity 1 0 0 --yaw-rate 20 --snr-k 0.4"
+                                 " --wall-reflectivity 0.08 0.15 0.3 0.5 0.7 0.95 > /dev/null";
+    ASSERT_EQ(std::system(generate.c_str()), 0) << generate;
+    judge("independent",
+          " --capture " + (out / "capture.pcap").string() + " --metadata " + (out / "metadata.json").string() +
+              " --pose " + (out / "pose.tum").string() + " --profile os1-32-paper",
+          " --scene " + (out / "scene.gltf").string(), "signal_precision");
+  }
+
+  // compare --diagnose with the scene and without it (--map), and the spreads on the same returns.
+  static void judge(const std::string& name, const std::string& inputs, const std::string& scene,
+                    const std::string& hidden) {
+    Judged& j = judged_[name];
+    j.hidden = hidden;
+    for (const bool map : {false, true}) {
+      const fs::path out = dir_ / (name + (map ? "_map" : "_scene"));
+      const CliRun r = run_cli(std::string("compare --diagnose --no-plots") + (map ? " --map" : scene) + inputs +
+                               " --out " + out.string());
+      ASSERT_EQ(r.exit_code, 0) << r.output;
+      (map ? j.map : j.scene) = read_json(out / "report.json");
+    }
+    j.same = same_returns(name + "_scene", name + "_map");
+  }
+
+  static inline fs::path dir_, table_;
+  static inline std::map<std::string, Judged> judged_;
+};
+
+// The single-feature bins of `feature` in a report, by their lower edge.
+std::map<double, nlohmann::json> bins_of(const nlohmann::json& report, const std::string& feature) {
+  std::map<double, nlohmann::json> out;
+  for (const auto& bin : report["bins"]) {
+    if (bin["features"].size() == 1 && bin["features"].contains(feature)) {
+      out[bin["features"][feature][0].get<double>()] = bin;
+    }
+  }
+  return out;
+}
+
+// Whether a report lists the spread of a single-feature bin among its failing regions.
+bool spread_fails(const nlohmann::json& report, const std::string& feature, double lower) {
+  for (const auto& f : report["failing"]) {
+    if (f["quantity"] == "spread" && f["features"].size() == 1 && f["features"].contains(feature) &&
+        f["features"][feature][0].get<double>() == lower) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// Per range and reflectivity bin, on the returns both judged, map mode's spread ratio (the
+// reference's own variance taken out) is the scene's within 5 %. The exception is the ground
+// beyond 13 m, seen at 80-85 degrees of incidence, where the reference's variance is most of the
+// residual's (s^2 h / cos^2 with cos^2 near 0.01) and is under-counted: there, within 12 %
+// (docs/compare-report.md, "References without a scene").
+// Map mode's spread ratio over the scene's, per bin of `feature` holding kMinInliers or more;
+// returns how many were compared.
+size_t expect_agreement(const std::string& name, const nlohmann::json& same, const std::string& feature) {
+  size_t compared = 0;
+  for (const auto& bin : same[feature]) {
+    if (bin["inliers"].get<size_t>() < kMinInliers) continue;
+    const double ratio = bin["map"].get<double>() / bin["scene"].get<double>();
+    const bool grazing_ground = feature == "range" && bin["bin"][0].get<double>() == 13.0;
+    EXPECT_NEAR(ratio, 1.0, grazing_ground ? 0.12 : 0.05) << name << " " << feature << " " << bin.dump();
+    ++compared;
+  }
+  return compared;
+}
+
+TEST_F(MapAgreement, SpreadPerRangeAndReflectivityBinAgreesWithTheScenesOnTheSameReturns) {
+  for (const auto& [name, j] : judged_) {
+    EXPECT_GE(expect_agreement(name, j.same, "range") + expect_agreement(name, j.same, "reflectivity"), 4u)
+        << name << ": " << j.same.dump();
+  }
+}
+
+// With the frames registered to each other the same holds per range bin. Per reflectivity bin it
+// does not yet: where the profile is right (the plant's 40-60 %, walls at near-normal incidence)
+// the registration's error (a few millimetres, not in the reference's variance) shows, 1.07 times
+// the scene's (docs/compare-report.md).
+TEST_F(MapAgreement, WithRegisteredFramesTheSpreadPerRangeBinAgrees) {
+  for (const auto& [name, j] : judged_) {
+    if (j.registered.is_null()) continue;  // the independent capture is judged with its trajectory only
+    EXPECT_GE(expect_agreement(name + " (registered)", j.registered, "range"), 2u)
+        << name << ": " << j.registered.dump();
+  }
+}
+
+// Where the scene-based comparison finds the spread failing, so does map mode, and the reverse:
+// every range and reflectivity bin both judge on enough returns.
+TEST_F(MapAgreement, TheSameRegionsFail) {
+  for (const auto& [name, j] : judged_) {
+    size_t compared = 0, failing = 0;
+    for (const std::string feature : {"range", "reflectivity"}) {
+      const auto scene = bins_of(j.scene, feature), map = bins_of(j.map, feature);
+      for (const auto& [lower, bin] : scene) {
+        const auto other = map.find(lower);
+        if (other == map.end() || bin["inliers"].get<size_t>() < kMinInliers ||
+            other->second["inliers"].get<size_t>() < kMinInliers) {
+          continue;
+        }
+        const bool in_scene = spread_fails(j.scene, feature, lower);
+        EXPECT_EQ(spread_fails(j.map, feature, lower), in_scene) << name << " " << feature << " from " << lower;
+        ++compared;
+        failing += in_scene;
+      }
+    }
+    EXPECT_GE(compared, 3u) << name;
+    EXPECT_GE(failing, 1u) << name << ": the hidden effect fails no region with the scene";
+  }
+}
+
+// What a diagnosis names: its candidates by their gain (ranked), those it keeps (selected), and
+// the noise laws it would replace (parameter_misfit[].replacement).
+struct Named {
+  std::string first;
+  std::set<std::string> kept;
+};
+Named named(const nlohmann::json& diagnosis) {
+  Named n;
+  if (!diagnosis["ranked"].empty()) n.first = diagnosis["ranked"][0]["effect"];
+  for (const auto& c : diagnosis["selected"]) n.kept.insert(c["effect"]);
+  for (const auto& m : diagnosis["parameter_misfit"]) {
+    if (m.contains("replacement")) n.kept.insert(m["replacement"]["effect"]);
+  }
+  return n;
+}
+
+// The diagnosis ranks the hidden effect first, with the scene and without it. With the scene it
+// also keeps it (added, or in place of the profile's noise law, which for E2 on top of a 1-2 cm
+// table fits nearly as well). Without, it does on the plant and the independent capture, but on
+// the yard it keeps incidence in E2's stead (known, docs/compare-report.md): not asserted.
+TEST_F(MapAgreement, TheHiddenEffectIsNamedAsWithTheScene) {
+  for (const auto& [name, j] : judged_) {
+    const Named scene = named(j.scene["diagnosis"]), map = named(j.map["diagnosis"]);
+    EXPECT_EQ(scene.first, j.hidden) << name << " (scene)";
+    EXPECT_TRUE(scene.kept.count(j.hidden)) << name << " (scene): " << j.scene["diagnosis"]["selected"].dump();
+    EXPECT_EQ(map.first, j.hidden) << name << " (map)";
+  }
+}
+
+}  // namespace
