@@ -55,7 +55,7 @@ Profiles load_profiles(const std::vector<std::string>& names) {
   for (const std::string& name : names) {
     out.profiles.push_back(load_sensor(name).profile);
     const SensorProfile& profile = out.profiles.back();
-    out.chains.push_back(EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects"));
+    out.chains.push_back(profile_chain(profile));
   }
   return out;
 }

@@ -167,7 +167,7 @@ int run_fit(const FitFlags& flags) {
   // A unit's metadata gives its twin: the written profile keeps the unit's beam intrinsics.
   const SensorChoice sensor = load_sensor(flags.profile);
   const SensorProfile& profile = sensor.profile;
-  const EffectChain chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  const EffectChain chain = profile_chain(profile);
   Steps steps;
   const Measured measured = measure(flags.measured, profile, chain, steps);
   DiagnoseOptions options;

@@ -168,8 +168,7 @@ int run_record(const RecordFlags& flags) {
   const Metadata metadata = make_record_metadata(flags, sensor);
   const std::unique_ptr<PoseSource> poses = load_poses(flags);
   const Scene scene = Scene::load(flags.scene);
-  EffectChain chain = flags.ideal ? ideal_chain(profile)
-                                  : EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  EffectChain chain = flags.ideal ? ideal_chain(profile) : profile_chain(profile);
   const ProgressBar bar(flags.frames, metadata.format.fps);
   struct sigaction action {};
   action.sa_handler = request_stop;

@@ -18,6 +18,7 @@
 #include "cli/command.h"
 #include "cli/format_validators.h"
 #include "cli/serve_inputs.h"
+#include "cli/unit_twin.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/worker_pool.h"
@@ -94,7 +95,7 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sen
   setup.streamer.spin_us = flags.spin_us;
   setup.streamer.render_nice = render_nice;
   setup.max_range_m = profile.max_range_m;
-  setup.chain = EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  setup.chain = profile_chain(profile);
   setup.seed = flags.seed;
   setup.mounting = mounting(flags);
   setup.per_column_poses = flags.per_column_poses;

@@ -148,6 +148,10 @@ std::optional<std::pair<int, int>> firmware_version(const std::string& image_rev
   return std::nullopt;
 }
 
+EffectChain profile_chain(const SensorProfile& profile) {
+  return EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+}
+
 SensorChoice load_sensor(const std::string& name_or_path) {
   const std::filesystem::path path = profile_file(name_or_path);
   json document = read_json(path);

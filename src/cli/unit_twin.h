@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/profile/sensor_profile.h"
 
@@ -25,6 +26,9 @@ struct SensorChoice {
 // product line has no shipped profile, beams that differ from the product line's, and everything
 // parse_metadata and parse_profile refuse.
 SensorChoice load_sensor(const std::string& name_or_path);
+
+// The profile's effect chain; its errors name "profile <name>: /effects/<i>/<key>".
+EffectChain profile_chain(const SensorProfile& profile);
 
 // Whether a JSON document is sensor metadata rather than a profile: it has metadata keys (one of
 // the 7 nested sections, or the flat layout's beam angles, lidar_mode or prod_sn) and no effects.
