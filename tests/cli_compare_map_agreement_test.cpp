@@ -137,14 +137,17 @@ class MapAgreement : public ::testing::Test {
           " --scene " + (out / "scene.gltf").string(), "signal_precision");
   }
 
-  // compare --diagnose with the scene and without it (--map), and the spreads on the same returns.
+  // compare with the scene and without it (--map, with --diagnose), and the spreads on the same
+  // returns. (The scene's own diagnosis names each of these hidden effects in cli_compare_test and
+  // cli_compare_moving_capture_test; here map mode's is held to the truth, which costs CI a third of
+  // the time.)
   static void judge(const std::string& name, const std::string& inputs, const std::string& scene,
                     const std::string& hidden) {
     Judged& j = judged_[name];
     j.hidden = hidden;
     for (const bool map : {false, true}) {
       const fs::path out = dir_ / (name + (map ? "_map" : "_scene"));
-      const CliRun r = run_cli(std::string("compare --diagnose --no-plots") + (map ? " --map" : scene) + inputs +
+      const CliRun r = run_cli(std::string("compare --no-plots") + (map ? " --map --diagnose" : scene) + inputs +
                                " --out " + out.string());
       ASSERT_EQ(r.exit_code, 0) << r.output;
       (map ? j.map : j.scene) = read_json(out / "report.json");
@@ -256,16 +259,16 @@ Named named(const nlohmann::json& diagnosis) {
   return n;
 }
 
-// The diagnosis ranks the hidden effect first, with the scene and without it. With the scene it
-// also keeps it (added, or in place of the profile's noise law, which for E2 on top of a 1-2 cm
-// table fits nearly as well). Without, it does on the plant and the independent capture, but on
-// the yard it keeps incidence in E2's stead (known, docs/compare-report.md): not asserted.
+// Without the scene the diagnosis ranks the hidden effect first, as it does with the scene. It
+// also keeps it on the plant and the independent capture, but on the yard it keeps incidence in
+// E2's stead (known, docs/compare-report.md): not asserted.
 void the_hidden_effect_is_named_as_with_the_scene(const std::map<std::string, Judged>& judged) {
   for (const auto& [name, j] : judged) {
-    const Named scene = named(j.scene["diagnosis"]), map = named(j.map["diagnosis"]);
-    EXPECT_EQ(scene.first, j.hidden) << name << " (scene)";
-    EXPECT_TRUE(scene.kept.count(j.hidden)) << name << " (scene): " << j.scene["diagnosis"]["selected"].dump();
-    EXPECT_EQ(map.first, j.hidden) << name << " (map)";
+    const Named map = named(j.map["diagnosis"]);
+    EXPECT_EQ(map.first, j.hidden) << name << " (map): " << j.map["diagnosis"]["ranked"].dump();
+    if (name != "yard") {
+      EXPECT_TRUE(map.kept.count(j.hidden)) << name << " (map): " << j.map["diagnosis"]["selected"].dump();
+    }
   }
 }
 

@@ -78,23 +78,63 @@ std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels) {
 
 double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
                  const PatternAdjustment* adjust) {
-  double nll = 0.0;
+  return total_nll(t, rows, chain, SharedPrefix{}, adjust);
+}
+
+SharedPrefix::SharedPrefix(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain, size_t count)
+    : count_(std::min(count, chain.effects().size())) {
+  if (count_ == 0) return;
+  predictions_.reserve(rows.size());
+  const auto& effects = chain.effects();
   for (const size_t i : rows) {
-    Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
+    const IdealReturn ideal = t.ideal_of(i);
+    const ColumnContext context = t.context_of(i);
+    Prediction p;
+    p.p_detect = ideal.hit() ? 1.0 : 0.0;  // as EffectChain::predict starts
+    for (size_t e = 0; e < count_; ++e) effects[e]->predict(ideal, context, p);
+    predictions_.push_back(p);
+  }
+}
+
+double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
+                 const SharedPrefix& prefix, const PatternAdjustment* adjust) {
+  const auto& effects = chain.effects();
+  double nll = 0.0;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const size_t i = rows[k];
+    Prediction p;
+    if (prefix.count() == 0) {
+      p = chain.predict(t.ideal_of(i), t.context_of(i));
+    } else {
+      p = prefix[k];
+      const IdealReturn ideal = t.ideal_of(i);
+      const ColumnContext context = t.context_of(i);
+      for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(ideal, context, p);
+    }
     if (adjust) adjust->apply(i, p);
     nll += pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
   }
   return nll;
 }
 
+namespace {
+// Where with_candidate inserts: before the chain's range limits or quantization, or at its end.
+size_t candidate_position(const EffectChain& chain) {
+  const auto& effects = chain.effects();
+  return static_cast<size_t>(
+      std::find_if(effects.begin(), effects.end(),
+                   [](const auto& e) { return e->name() == "range_limits" || e->name() == "range_quantization"; }) -
+      effects.begin());
+}
+}  // namespace
+
 EffectChain with_candidate(const EffectChain& chain, const nlohmann::json& effect) {
   nlohmann::json document = chain.to_json();
-  auto limits = std::find_if(document.begin(), document.end(), [](const nlohmann::json& e) {
-    return e.value("name", "") == "range_limits" || e.value("name", "") == "range_quantization";
-  });
-  document.insert(limits, effect);
+  document.insert(document.begin() + static_cast<std::ptrdiff_t>(candidate_position(chain)), effect);
   return EffectChain::from_json(document, "diagnosis candidate");
 }
+
+size_t Placement::first_changed() const { return index ? *index : candidate_position(base); }
 
 EffectChain Placement::chain_with(const nlohmann::json& effect) const {
   if (!index) return with_candidate(base, effect);
@@ -211,8 +251,10 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
     }
     return e;
   };
+  // The effects before the fitted one predict the same for every value tried: predicted once.
+  const SharedPrefix prefix(t, rows, probe, place.first_changed());
   const auto objective = [&](const std::vector<double>& values) {
-    return total_nll(t, rows, place.chain_with(effect_json(values)), adjust);
+    return total_nll(t, rows, place.chain_with(effect_json(values)), prefix, adjust);
   };
   nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(x.size()));
   opt.set_lower_bounds(lower);

@@ -285,7 +285,7 @@ class MapReferences {
   int column_reach_ = 1;
 };
 
-struct Kept {
+struct KeptPixel {
   uint16_t m = 0, r = 0;
   Crossing reference;
 };
@@ -326,7 +326,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
   const double reach = std::min(setup.max_range_m + 1.0, wire_max_m);
 
   // Frame by frame (any thread), then gathered in frame order: the table does not depend on threads.
-  std::vector<std::vector<Kept>> kept(frames.size());
+  std::vector<std::vector<KeptPixel>> kept(frames.size());
   std::vector<MapExclusions> counts(frames.size());
   std::atomic<int> done{0};
   std::mutex progress_mutex;
@@ -400,7 +400,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
     const auto k = static_cast<size_t>(item);
     const Scan& scan = capture.frames[k].scan;
     for (size_t n = 0; n < kept[k].size(); ++n) {
-      const Kept& pixel = kept[k][n];
+      const KeptPixel& pixel = kept[k][n];
       const size_t p = offsets[k] + n;
       t.set_measured(p, static_cast<uint32_t>(k - scored_begin), scan, pixel.m, pixel.r);
       IdealReturn ideal;

@@ -96,7 +96,7 @@ void setup_ape(CLI::App& app, std::function<int()>& run) {
   sub->callback([&run, flags] { run = [flags] { return run_ape(*flags); }; });
 }
 
-const RegisterCommand registered("ape", setup_ape);
+const RegisterCommand registered_ape("ape", setup_ape);
 
 }  // namespace
 }  // namespace lidartwin::cli

@@ -252,7 +252,7 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
   sub->callback([&run, flags] { run = [flags] { return run_compare(*flags); }; });
 }
 
-const RegisterCommand registered("compare", setup_compare);
+const RegisterCommand registered_compare("compare", setup_compare);
 
 }  // namespace
 }  // namespace lidartwin::cli

@@ -87,7 +87,7 @@ void setup_effects(CLI::App& app, std::function<int()>& run) {
   });
 }
 
-const RegisterCommand registered("effects", setup_effects);
+const RegisterCommand registered_effects("effects", setup_effects);
 
 }  // namespace
 }  // namespace lidartwin::cli

@@ -228,7 +228,7 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
   sub->callback([&run, flags] { run = [flags] { return run_fit(*flags); }; });
 }
 
-const RegisterCommand registered("fit", setup_fit);
+const RegisterCommand registered_fit("fit", setup_fit);
 
 }  // namespace
 }  // namespace lidartwin::cli

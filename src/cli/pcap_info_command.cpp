@@ -153,7 +153,7 @@ void setup_pcap_info(CLI::App& app, std::function<int()>& run) {
   sub->callback([&run, flags] { run = [flags] { return run_pcap_info(*flags); }; });
 }
 
-const RegisterCommand registered("pcap-info", setup_pcap_info);
+const RegisterCommand registered_pcap_info("pcap-info", setup_pcap_info);
 
 }  // namespace
 }  // namespace lidartwin::cli

@@ -83,7 +83,7 @@ void setup_points(CLI::App& app, std::function<int()>& run) {
   sub->callback([&run, flags] { run = [flags] { return run_points(*flags); }; });
 }
 
-const RegisterCommand registered("points", setup_points);
+const RegisterCommand registered_points("points", setup_points);
 
 }  // namespace
 }  // namespace lidartwin::cli

@@ -229,7 +229,7 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
   });
 }
 
-const RegisterCommand registered("record", setup_record);
+const RegisterCommand registered_record("record", setup_record);
 
 }  // namespace
 }  // namespace lidartwin::cli

@@ -269,7 +269,7 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->callback([&run, flags] { run = [flags] { return serve(*flags); }; });
 }
 
-const RegisterCommand registered("serve", setup_serve);
+const RegisterCommand registered_serve("serve", setup_serve);
 
 }  // namespace
 }  // namespace lidartwin::cli
