@@ -2,10 +2,13 @@
 // the cmd API of SDK <= 0.15, proxy-form request lines, and bad requests (4xx, config unchanged).
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <ostream>
 #include <thread>
+#include <vector>
 
 #include <unistd.h>
 
@@ -434,6 +437,32 @@ TEST_F(HttpApi, ConcurrentClientsAreServed) {
   }
   for (auto& thread : threads) thread.join();
   EXPECT_EQ(failures.load(), 0);
+}
+
+// A keep-alive client holds its connection, and httplib the thread serving it, until it goes
+// quiet for the keep-alive time-out (5 s). Fifty such clients, each served once and then idle, do
+// not hold up the next ones: each is answered at once (with a fixed pool of 8 threads, the 9th
+// waited 5 s for the first to time out).
+TEST_F(HttpApi, IdleKeepAliveClientsDoNotHoldUpTheNextOnes) {
+  std::vector<std::unique_ptr<httplib::Client>> clients;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 51; ++i) {
+    auto http = std::make_unique<httplib::Client>("127.0.0.1", port());
+    http->set_keep_alive(true);
+    http->set_read_timeout(10, 0);
+    const auto response = http->Get("/api/v1/sensor/metadata/sensor_info");
+    ASSERT_TRUE(response) << "client " << i << ": " << httplib::to_string(response.error());
+    EXPECT_EQ(response->status, 200) << "client " << i;
+    clients.push_back(std::move(http));  // stays connected, idle
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(seconds, 2.0) << "51 keep-alive clients, one request each";
+  // Every one of them is still served on its own connection.
+  for (size_t i = 0; i < clients.size(); ++i) {
+    const auto again = clients[i]->Get("/api/v1/sensor/metadata/sensor_info");
+    ASSERT_TRUE(again) << "client " << i << " again";
+    EXPECT_EQ(again->status, 200);
+  }
 }
 
 std::filesystem::path state_file_path() {

@@ -12,6 +12,7 @@
 
 #include "http_api/api_util.h"
 #include "http_api/bind_probe.h"
+#include "http_api/connection_threads.h"
 #include "lidartwin/http_api/request_handler.h"
 
 namespace lidartwin {
@@ -141,8 +142,10 @@ void HttpServer::Impl::configure_connections() {
   server.set_write_timeout(options.write_timeout);
   server.set_keep_alive_timeout(options.keep_alive_timeout.count());
   server.set_keep_alive_max_count(options.keep_alive_max_requests);
-  const std::size_t threads = options.threads;
-  server.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
+  const std::size_t threads = options.max_connections;
+  server.new_task_queue = [threads] {
+    return new http_detail::ConnectionThreads(threads, std::chrono::milliseconds(10'000));
+  };
 }
 
 HttpServer::HttpServer(Sensor& sensor, HttpServerOptions options)

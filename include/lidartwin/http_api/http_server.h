@@ -18,10 +18,12 @@ struct HttpServerOptions {
   std::size_t max_body_bytes = 1 << 20;  // a full config is ~1.5 KB (protocol doc 2.1)
   std::chrono::seconds read_timeout{5};
   std::chrono::seconds write_timeout{5};
-  // curl reuses one connection (protocol doc 2.1); an idle one holds a worker thread this long.
+  // curl reuses one connection (protocol doc 2.1); an idle one holds its thread this long.
   std::chrono::seconds keep_alive_timeout{5};
   std::size_t keep_alive_max_requests = 1000;
-  std::size_t threads = 8;
+  // Connections served at once, each on a thread of its own that starts when a connection finds
+  // none idle and ends after 10 s idle; past this many, a connection waits for one to close.
+  std::size_t max_connections = 256;
   // lidartwin's own endpoints (below /lidartwin/v1/, not part of the sensor's API), if any.
   ExtensionEndpoint lidartwin_api = nullptr;
 };
