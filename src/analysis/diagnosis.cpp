@@ -31,7 +31,7 @@ struct Search {
   const PixelTable& table;
   const Misfit& misfit;
   const DiagnoseOptions& options;
-  std::vector<size_t> rows;
+  analysis_detail::FitRows rows;
   EffectChain chain;
   double nll = 0.0;
   double log_n() const { return std::log(static_cast<double>(rows.size())); }
@@ -346,7 +346,7 @@ std::string replacement_sentence(const Replacement& r) {
 Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
                    const DiagnoseOptions& options) {
   Diagnosis d;
-  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels), chain, 0.0};
+  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0};
   d.pixels = s.rows.size();
   refit_radiometry_first(s, d);
   s.nll = analysis_detail::total_nll(table, s.rows, s.chain);

@@ -64,24 +64,23 @@ std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise) 
 // fits every beam; on the hall's seed-5 hidden-E4 capture it drew a bias factor interval of
 // [-0.0064, -0.0012] for a true 0, where seeds 6 and 7 cover it: a -2.9 SE draw. Switching is
 // left to a change that also moves those tests' seeds.)
-std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels) {
+FitRows subsample(const PixelTable& t, size_t max_pixels, WorkerPool* pool) {
   size_t hits = 0;
   for (const float r : t.ideal_range_m) hits += r > 0.0f;
   const size_t stride = std::max<size_t>(1, hits / std::max<size_t>(max_pixels, 1));
-  std::vector<size_t> rows;
+  FitRows rows{{}, pool};
   size_t seen = 0;
   for (size_t i = 0; i < t.size(); ++i) {
-    if (t.ideal_range_m[i] > 0.0f && seen++ % stride == 0) rows.push_back(i);
+    if (t.ideal_range_m[i] > 0.0f && seen++ % stride == 0) rows.index.push_back(i);
   }
   return rows;
 }
 
-double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
-                 const PatternAdjustment* adjust) {
+double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const PatternAdjustment* adjust) {
   return total_nll(t, rows, chain, SharedPrefix{}, adjust);
 }
 
-SharedPrefix::SharedPrefix(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain, size_t count)
+SharedPrefix::SharedPrefix(const PixelTable& t, const FitRows& rows, const EffectChain& chain, size_t count)
     : count_(std::min(count, chain.effects().size())) {
   if (count_ == 0) return;
   predictions_.reserve(rows.size());
@@ -96,24 +95,45 @@ SharedPrefix::SharedPrefix(const PixelTable& t, const std::vector<size_t>& rows,
   }
 }
 
-double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
-                 const SharedPrefix& prefix, const PatternAdjustment* adjust) {
+namespace {
+// Rows per chunk of a likelihood sum: small enough to spread 200,000 rows over many workers, large
+// enough that handing out a chunk costs nothing against predicting it.
+constexpr size_t kChunkRows = 4096;
+}  // namespace
+
+double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const SharedPrefix& prefix,
+                 const PatternAdjustment* adjust) {
   const auto& effects = chain.effects();
-  double nll = 0.0;
-  for (size_t k = 0; k < rows.size(); ++k) {
-    const size_t i = rows[k];
-    Prediction p;
-    if (prefix.count() == 0) {
-      p = chain.predict(t.ideal_of(i), t.context_of(i));
-    } else {
-      p = prefix[k];
-      const IdealReturn ideal = t.ideal_of(i);
-      const ColumnContext context = t.context_of(i);
-      for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(ideal, context, p);
+  const auto chunk_nll = [&](size_t first, size_t last) {
+    double nll = 0.0;
+    for (size_t k = first; k < last; ++k) {
+      const size_t i = rows[k];
+      Prediction p;
+      if (prefix.count() == 0) {
+        p = chain.predict(t.ideal_of(i), t.context_of(i));
+      } else {
+        p = prefix[k];
+        const IdealReturn ideal = t.ideal_of(i);
+        const ColumnContext context = t.context_of(i);
+        for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(ideal, context, p);
+      }
+      if (adjust) adjust->apply(i, p);
+      nll += pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
     }
-    if (adjust) adjust->apply(i, p);
-    nll += pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
+    return nll;
+  };
+  const size_t chunks = (rows.size() + kChunkRows - 1) / kChunkRows;
+  std::vector<double> sums(chunks, 0.0);
+  const auto run_chunk = [&](size_t c) {
+    sums[c] = chunk_nll(c * kChunkRows, std::min(rows.size(), (c + 1) * kChunkRows));
+  };
+  if (rows.pool && rows.pool->size() > 1 && chunks > 1) {
+    rows.pool->run(static_cast<int>(chunks), [&](int, int c) { run_chunk(static_cast<size_t>(c)); });
+  } else {
+    for (size_t c = 0; c < chunks; ++c) run_chunk(c);
   }
+  double nll = 0.0;
+  for (const double s : sums) nll += s;  // in chunk order, whichever worker summed each
   return nll;
 }
 
@@ -161,8 +181,8 @@ namespace {
 // its returns within 5 sigma of the chain's prediction, r - mean = dr_b + s_b mean, weights
 // 1/sigma^2, over every pixel of the table (an even subsample can miss every other beam); the
 // intervals from the normal equations. Then scored like any candidate, on the fitted rows.
-Candidate fit_beam_calibration(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place,
-                               double base_nll, const PatternAdjustment* adjust) {
+Candidate fit_beam_calibration(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
+                               const PatternAdjustment* adjust) {
   struct Sums {
     double w = 0, wm = 0, wmm = 0, we = 0, wem = 0;
   };
@@ -224,7 +244,7 @@ Candidate fit_beam_calibration(const PixelTable& t, const std::vector<size_t>& r
 
 }  // namespace
 
-Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place, double base_nll,
+Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
               const CandidateSpec& spec, const PatternAdjustment* adjust) {
   if (spec.effect == "beam_calibration" && spec.free.empty()) {
     return fit_beam_calibration(t, rows, place, base_nll, adjust);
@@ -349,7 +369,7 @@ Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placem
 // part of what a later one explains (incidence's bias takes up a warm-up drift's offset, and the
 // drift's constant offset then cancels it). Each is refitted in its place given all the others, in
 // turn (at most 4 passes); its interval is then its own given the others' values.
-void refit_jointly(const PixelTable& t, const std::vector<size_t>& rows, EffectChain& chain, double& nll,
+void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
                    std::vector<Candidate*> fitted, const std::vector<CandidateSpec>& specs) {
   if (fitted.size() < 2) return;
   for (int pass = 0; pass < 4; ++pass) {
@@ -370,9 +390,9 @@ void refit_jointly(const PixelTable& t, const std::vector<size_t>& rows, EffectC
   }
 }
 
-std::optional<ParameterMisfit> refit_in_place(const PixelTable& t, const std::vector<size_t>& rows, EffectChain& chain,
-                                              double& nll, size_t index, const CandidateSpec& spec,
-                                              const DiagnoseOptions& options, double alpha) {
+std::optional<ParameterMisfit> refit_in_place(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
+                                              size_t index, const CandidateSpec& spec, const DiagnoseOptions& options,
+                                              double alpha) {
   ParameterMisfit m;
   m.refit = fit(t, rows, Placement{chain, index}, nll, spec);
   if (m.refit.delta_bic < options.min_delta_bic || m.refit.p_value > alpha) return std::nullopt;

@@ -10,6 +10,7 @@
 #include "lidartwin/analysis/pixel_table.h"
 #include "lidartwin/analysis/unexplained.h"
 #include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/frame/worker_pool.h"
 
 namespace lidartwin::analysis_detail {
 
@@ -38,12 +39,24 @@ nlohmann::json::json_pointer pointer(const std::string& name);
 // or, with range_noise, the range noise's sigmas (E1).
 std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise);
 
+// The pixels a fit scores (rows of the table), and the workers that sum their likelihood: each
+// evaluation is summed in fixed chunks of rows, added in order, so the sum is the same whatever
+// the pool's size (none: the calling thread alone).
+struct FitRows {
+  std::vector<size_t> index;
+  WorkerPool* pool = nullptr;
+  size_t size() const { return index.size(); }
+  size_t operator[](size_t k) const { return index[k]; }
+  auto begin() const { return index.begin(); }
+  auto end() const { return index.end(); }
+};
+
 // The fitted pixels: an even subsample of up to max_pixels of those that meet a surface.
-std::vector<size_t> subsample(const PixelTable& t, size_t max_pixels);
+FitRows subsample(const PixelTable& t, size_t max_pixels, WorkerPool* pool);
 
 // Total NLL of the rows under a chain (the same likelihood compare scores with).
 // adjust: a misfit pattern's per-bin values applied on top of the chain's predictions.
-double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
+double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain,
                  const PatternAdjustment* adjust = nullptr);
 
 // What a chain's first `count` effects predict for each of the rows: a fit changes one effect and
@@ -52,7 +65,7 @@ double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const Eff
 class SharedPrefix {
  public:
   SharedPrefix() = default;
-  SharedPrefix(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain, size_t count);
+  SharedPrefix(const PixelTable& t, const FitRows& rows, const EffectChain& chain, size_t count);
   size_t count() const { return count_; }
   const Prediction& operator[](size_t row) const { return predictions_[row]; }
 
@@ -62,8 +75,8 @@ class SharedPrefix {
 };
 
 // total_nll of a chain whose first prefix.count() effects are those the prefix was predicted with.
-double total_nll(const PixelTable& t, const std::vector<size_t>& rows, const EffectChain& chain,
-                 const SharedPrefix& prefix, const PatternAdjustment* adjust = nullptr);
+double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const SharedPrefix& prefix,
+                 const PatternAdjustment* adjust = nullptr);
 
 // The chain with `effect` inserted before its range limits (what limits the window must see the
 // shifted range), or appended.
@@ -89,20 +102,20 @@ void score_candidate(Candidate& c, double base_nll, double nll, double k, size_t
 
 // The spec's free parameters fitted at `place` (NLopt BOBYQA, restarted while it still gains), from
 // the chain's NLL base_nll; scored with k = its free parameters, 95 % intervals from the curvature.
-Candidate fit(const PixelTable& t, const std::vector<size_t>& rows, const Placement& place, double base_nll,
+Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
               const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr);
 
 // Each of `fitted` (effects in `chain`, found by name) refitted in its place given all the others,
 // in turn, until a pass gains less than 0.1 nats; chain, nll and the candidates are updated.
-void refit_jointly(const PixelTable& t, const std::vector<size_t>& rows, EffectChain& chain, double& nll,
+void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
                    std::vector<Candidate*> fitted, const std::vector<CandidateSpec>& specs);
 
 // A profile's own effect (at `index`) refitted in place from its values, kept (returned) where the
 // refit is very strong evidence (delta BIC > options.min_delta_bic) and significant at `alpha`;
 // chain and nll then updated.
-std::optional<ParameterMisfit> refit_in_place(const PixelTable& t, const std::vector<size_t>& rows, EffectChain& chain,
-                                              double& nll, size_t index, const CandidateSpec& spec,
-                                              const DiagnoseOptions& options, double alpha);
+std::optional<ParameterMisfit> refit_in_place(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
+                                              size_t index, const CandidateSpec& spec, const DiagnoseOptions& options,
+                                              double alpha);
 
 // An effect the search does not list (one a user registered): every parameter that is not fixed is
 // fitted, from the value `effect` gives it (or its default), in steps of a tenth of its bounds.

@@ -40,7 +40,7 @@ nlohmann::json fittable_document(const std::string& name) {
 // with their specs (for the joint refit).
 struct Fitting {
   const PixelTable& table;
-  std::vector<size_t> rows;
+  analysis_detail::FitRows rows;
   EffectChain chain;
   double nll = 0.0;
   std::vector<Candidate*> fitted;
@@ -124,7 +124,7 @@ std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& c
 
 std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& chain,
                                    const std::vector<nlohmann::json>& effects, const DiagnoseOptions& options) {
-  Fitting f{table, analysis_detail::subsample(table, options.max_pixels), chain, 0.0, {}, {}};
+  Fitting f{table, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0, {}, {}};
   f.nll = analysis_detail::total_nll(table, f.rows, f.chain);
   std::vector<Candidate> added;
   for (const nlohmann::json& effect : effects) added.push_back(add_effect(f, effect));
@@ -136,7 +136,7 @@ std::vector<Candidate> fit_effects(const PixelTable& table, const EffectChain& c
 FittedProfile fit_profile(const PixelTable& table, const EffectChain& chain, const FitPlan& plan,
                           const DiagnoseOptions& options) {
   FittedProfile out{chain, {}, {}, {}};
-  Fitting f{table, analysis_detail::subsample(table, options.max_pixels), chain, 0.0, {}, {}};
+  Fitting f{table, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0, {}, {}};
   // The capture's own radiometric constants first, as the diagnosis does: every signal-driven
   // effect is fitted against the expected signal they make.
   if (std::optional<ParameterMisfit> m = refit_radiometry(table, f.chain, options)) {

@@ -39,7 +39,7 @@ CandidateSpec linear_form(const Effect& table) {
 // The datasheet table with one free sigma per plateau (a run of knots of equal sigma) that the
 // rows reach: a pixel belongs to the plateau whose span, extended halfway into the ramps on either
 // side, holds its ideal range.
-CandidateSpec table_form(const nlohmann::json& datasheet, const PixelTable& t, const std::vector<size_t>& rows) {
+CandidateSpec table_form(const nlohmann::json& datasheet, const PixelTable& t, const FitRows& rows) {
   const nlohmann::json& points = datasheet.at("points_m");
   struct Plateau {
     size_t first, last;
@@ -90,8 +90,7 @@ std::optional<size_t> range_noise_index(const EffectChain& chain) {
 }
 
 std::vector<CandidateSpec> noise_law_forms(const EffectChain& chain, size_t index, const PixelTable& t,
-                                           const std::vector<size_t>& rows,
-                                           const std::optional<nlohmann::json>& datasheet) {
+                                           const FitRows& rows, const std::optional<nlohmann::json>& datasheet) {
   const Effect& law = *chain.effects()[index];
   std::vector<CandidateSpec> forms;
   if (has_effect(chain, "radiometry") && !has_effect(chain, "signal_precision")) {

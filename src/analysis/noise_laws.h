@@ -26,7 +26,6 @@ std::optional<size_t> range_noise_index(const EffectChain& chain);
 //    datasheet's value and is not counted.
 // Forms whose effect the chain already has are left out.
 std::vector<CandidateSpec> noise_law_forms(const EffectChain& chain, size_t index, const PixelTable& t,
-                                           const std::vector<size_t>& rows,
-                                           const std::optional<nlohmann::json>& datasheet);
+                                           const FitRows& rows, const std::optional<nlohmann::json>& datasheet);
 
 }  // namespace lidartwin::analysis_detail

@@ -19,6 +19,7 @@
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/error.h"
+#include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/profile/sensor_profile.h"
 
 namespace lidartwin::cli {
@@ -93,6 +94,8 @@ Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, cons
   options.refit_profile = !flags.keep_profile;
   options.refit_range_noise = flags.refit_noise;
   options.datasheet_noise = datasheet_range_noise(profile.prod_line);
+  WorkerPool pool(flags.measured.threads);
+  options.pool = &pool;
   Diagnosis diagnosis = lidartwin::diagnose(table, chain, misfit, options);
   steps.done();
   return diagnosis;

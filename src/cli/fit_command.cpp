@@ -19,6 +19,7 @@
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
 #include "lidartwin/error.h"
+#include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/profile/sensor_profile.h"
 
 namespace lidartwin::cli {
@@ -174,6 +175,8 @@ int run_fit(const FitFlags& flags) {
   options.alpha = flags.alpha;
   options.refit_range_noise = flags.refit_noise;
   options.datasheet_noise = datasheet_range_noise(profile.prod_line);
+  WorkerPool pool(flags.measured.threads);
+  options.pool = &pool;
   steps.start("fitting");
   const Fitted fitted =
       flags.automatic ? fit_automatically(measured, chain, options) : fit_as_asked(flags, measured, chain, options);

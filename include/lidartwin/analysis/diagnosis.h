@@ -18,6 +18,8 @@
 
 namespace lidartwin {
 
+class WorkerPool;  // lidartwin/frame/worker_pool.h
+
 struct FittedParameter {
   std::string name;
   double value = 0.0;
@@ -121,6 +123,9 @@ struct DiagnoseOptions {
   // the form tried in place of a linear law; none: that form is not tried. With refit_profile,
   // the other forms (E2 alone, the linear law in place of a table) are always tried.
   std::optional<nlohmann::json> datasheet_noise;
+  // The workers the fits' likelihood sums are spread over (the same results whatever its size);
+  // none: the calling thread.
+  WorkerPool* pool = nullptr;
 };
 
 // chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).
