@@ -61,6 +61,23 @@ CliRun lidartwin(const std::string& arguments) {
 
 nlohmann::json read_json(const fs::path& path) { return nlohmann::json::parse(slurp(path)); }
 
+std::string first_line(const std::string& text) { return text.substr(0, text.find('\n')); }
+
+// Debian's Chromium, headless, as a user's browser (tools/test installs it).
+const std::string kBrowser =
+    "timeout 180 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1200,2400 "
+    "--virtual-time-budget=10000 --enable-logging=stderr --v=0 ";
+
+// DIR/report.html's DOM after its scripts ran; the browser's log in DIR/browser.log.
+std::string browser_dom(const fs::path& dir) {
+  const std::string page = "file://" + (dir / "report.html").string();
+  const int code = std::system((kBrowser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" +
+                                (dir / "browser.log").string())
+                                   .c_str());
+  EXPECT_EQ(code, 0) << slurp(dir / "browser.log");
+  return slurp(dir / "dom.html");
+}
+
 class Compare : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -103,6 +120,10 @@ TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   EXPECT_NE(r.out.find("no region fails"), std::string::npos) << r.out;
   const nlohmann::json report = read_json(dir / "report.json");
   EXPECT_EQ(report["schema"], "lidartwin.compare/1");
+  // The verdict in words leads the terminal's output.
+  const std::string verdict = report["verdict_sentence"];
+  EXPECT_EQ(verdict.rfind("The model fits this capture: no region fails at alpha 0.01", 0), 0u) << verdict;
+  EXPECT_EQ(first_line(r.out), verdict);
   const auto& s = report["summary"];
   EXPECT_EQ(s["frames"], 20);
   EXPECT_EQ(s["pixels"], 20 * 1024 * 64);
@@ -131,16 +152,14 @@ TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
                              " --profile os1-32-paper --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   ASSERT_TRUE(fs::exists(dir / "report.html")) << r.out;
-  const std::string browser =
-      "timeout 180 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1200,2400 "
-      "--virtual-time-budget=10000 --enable-logging=stderr --v=0 ";
-  const std::string page = "file://" + (dir / "report.html").string();
-  ASSERT_EQ(std::system((browser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" +
-                         (dir / "browser.log").string())
-                            .c_str()),
-            0)
-      << slurp(dir / "browser.log");
-  const std::string dom = slurp(dir / "dom.html");
+  const std::string dom = browser_dom(dir);
+  // The page opens with the verdict sentence, the one report.json and the terminal lead with.
+  const std::string verdict = read_json(dir / "report.json")["verdict_sentence"];
+  EXPECT_EQ(first_line(r.out), verdict);
+  const size_t verdict_at = dom.find("<p class=\"verdict\"><b>" + verdict + "</b></p>");
+  EXPECT_NE(verdict_at, std::string::npos) << verdict << "\n" << dom.substr(0, 2000);
+  EXPECT_LT(verdict_at, dom.find("<h2>"));
+  EXPECT_NE(verdict.find("run the same compare with --diagnose"), std::string::npos) << verdict;
   const auto attribute = [&](const std::string& name) {
     const size_t at = dom.find(name + "=\"");
     return at == std::string::npos ? -1 : std::stoi(dom.substr(at + name.size() + 2));
@@ -153,7 +172,8 @@ TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
   EXPECT_EQ(log.find(":CONSOLE"), std::string::npos) << log;
 
   const fs::path shot = dir / "shot.png";
-  ASSERT_EQ(std::system((browser + "--screenshot=" + shot.string() + " " + page + " >/dev/null 2>&1").c_str()), 0);
+  const std::string page = "file://" + (dir / "report.html").string();
+  ASSERT_EQ(std::system((kBrowser + "--screenshot=" + shot.string() + " " + page + " >/dev/null 2>&1").c_str()), 0);
   // Colours and ink of the screenshot, read by matplotlib: a blank or broken page has neither.
   const std::string measure = "/usr/bin/python3 -c \"import matplotlib.image as m, numpy as np; i = m.imread('" +
                               shot.string() +
@@ -186,6 +206,10 @@ TEST_F(Compare, ThePapersLinearLawFailsTheDatasheetCaptureInTheRangeBandsWhereTh
   EXPECT_TRUE(bands.count("[13.0,20.0]")) << report["failing"].dump(1);
   EXPECT_TRUE(bands.count("[20.0,35.0]")) << report["failing"].dump(1);
   EXPECT_NE(r.out.find("range 13–20 m: the measured spread is 0.3"), std::string::npos) << r.out;
+  // The verdict names the quantity that carries most of the misfit and where it is worst.
+  const std::string verdict = report["verdict_sentence"];
+  EXPECT_EQ(verdict.rfind("The model fails in ", 0), 0u) << verdict;
+  EXPECT_NE(verdict.find("most in the spread (worst: range"), std::string::npos) << verdict;
   EXPECT_GT(report["summary"]["nll_per_pixel"].get<double>() + 0.0, 0.0);
 }
 
@@ -343,6 +367,7 @@ nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::st
                 " --no-plots" + (diagnose ? " --diagnose" : "") + " --out " + (out_dir / "report").string());
   EXPECT_EQ(r.code, 0) << r.err;
   nlohmann::json report = read_json(out_dir / "report" / "report.json");
+  report["terminal"] = r.out;
   if (diagnose) {
     report["held_out"] = held_out_waterfall(" --capture " + capture.string() + " --scene " + kHall, os1_64(),
                                             report["diagnosis"], 10, out_dir);
@@ -469,13 +494,22 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   EXPECT_NE(refused.err.find("--add fog: not an effect the fit can estimate"), std::string::npos) << refused.err;
 }
 
+// A fitted parameter as report.html's diagnosis lists it: "width = 0.3 [0.2962, 0.3036]".
+std::string fmt_param(const std::string& name, const nlohmann::json& p) {
+  char text[160];
+  std::snprintf(text, sizeof text, "%s = %.4g [%.4g, %.4g]", name.c_str(), p["value"].get<double>(),
+                p["ci95"][0].get<double>(), p["ci95"][1].get<double>());
+  return text;
+}
+
 // E5: detection from the radiometric signal (a logistic in ln S around a threshold): the weak
 // returns go missing; the diagnosis names dropout and fits its threshold and width.
 TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   const nlohmann::json effect = {{"name", "dropout"}, {"threshold_photons", 6.0}, {"width", 0.3}};
   // Seed 6: on seed 5 the width's interval (0.3013-0.3089) missed the true 0.3 by 2.7 standard
   // errors, a 1-in-140 draw; seeds 6 (0.2962-0.3036) and 7 (0.2948-0.3022) cover it.
-  const nlohmann::json report = compare_hidden_effect(effect, "e5", out("e5"), /*diagnose=*/true, /*seed=*/6);
+  const fs::path e5 = out("e5");
+  const nlohmann::json report = compare_hidden_effect(effect, "e5", e5, /*diagnose=*/true, /*seed=*/6);
   EXPECT_EQ(report["failing"][0]["quantity"], "detection") << report["failing"][0]["sentence"];
   const auto& diagnosis = report["diagnosis"];
   ASSERT_EQ(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);
@@ -483,6 +517,32 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   EXPECT_EQ(diagnosis["selected"][0]["catalogue"], "E5");
   expect_covered(diagnosis["selected"][0], {{"threshold_photons", 6.0}, {"width", 0.3}});
   expect_error_falls(report["held_out"]);
+
+  // The verdict and the next command, in report.json, in the terminal and on report.html: the
+  // command is the fit held_out_waterfall ran, on every frame and into the report's directory.
+  const fs::path dir = e5 / "report";
+  const std::string next = report["next_command"], verdict = report["verdict_sentence"];
+  EXPECT_EQ(next, "lidartwin fit --capture " + (e5 / "capture").string() + " --scene " + kHall +
+                      " --profile " + os1_64() + " --add dropout --out " + (dir / "fitted.json").string());
+  EXPECT_EQ(verdict.rfind("The model fails in ", 0), 0u) << verdict;
+  EXPECT_NE(verdict.find("most in detection (worst: "), std::string::npos) << verdict;
+  EXPECT_NE(verdict.find("; --diagnose says dropout (E5) is missing: run `" + next + "`."), std::string::npos)
+      << verdict;
+  const std::string terminal = report["terminal"];
+  EXPECT_EQ(first_line(terminal), verdict);
+  EXPECT_NE(terminal.find("  next: " + next + "\n"), std::string::npos) << terminal;
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tools/compare-plots.py " + dir.string()).c_str()), 0);
+  const std::string dom = browser_dom(dir);
+  const size_t diagnosis_at = dom.find("<h2>Diagnosis</h2>");
+  ASSERT_NE(diagnosis_at, std::string::npos) << dom.substr(0, 3000);
+  EXPECT_LT(dom.find("<p class=\"verdict\"><b>" + verdict + "</b></p>"), diagnosis_at);
+  EXPECT_LT(diagnosis_at, dom.find("<h2>Where the model fails</h2>"));
+  const auto& width = diagnosis["selected"][0]["params"]["width"];
+  EXPECT_NE(dom.find(fmt_param("width", width)), std::string::npos) << dom.substr(diagnosis_at, 3000);
+  EXPECT_NE(dom.find("<td>dropout (E5)</td>"), std::string::npos) << dom.substr(diagnosis_at, 3000);
+  EXPECT_NE(dom.find("<pre class=\"next-command\">" + next + "</pre>"), std::string::npos)
+      << dom.substr(diagnosis_at, 3000);
+  EXPECT_NE(dom.find("unexplained"), std::string::npos) << dom.substr(diagnosis_at, 3000);
 }
 
 // E8: beside the hall's retroreflective panels, in their columns, returns at the panel's range and

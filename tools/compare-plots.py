@@ -156,6 +156,43 @@ def waterfall(report):
             % (rows, png(fig)))
 
 
+def number(value):
+    return "%.4g" % value
+
+
+def diagnosis_section(report):
+    """What --diagnose found, as the terminal prints it: the effects it selected with their values and
+    95 % intervals, replacements and refits, what stays unexplained, and the command that applies it."""
+    d = report.get("diagnosis")
+    if d is None:
+        return ""
+    parts = ["<p>verdict of the search: <b>%s</b> (fits on %d pixels)</p>" % (html.escape(d["verdict"]), d["pixels"])]
+    rows = "".join(
+        "<tr><td>%s (%s)</td><td>%+.1f</td><td>%s</td></tr>"
+        % (html.escape(c["effect"]), html.escape(c["catalogue"]), c["delta_bic"],
+           "<br>".join("%s = %s [%s, %s]" % (html.escape(name), number(p["value"]), number(p["ci95"][0]),
+                                               number(p["ci95"][1])) for name, p in c["params"].items()))
+        for c in d["selected"])
+    if rows:
+        parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC</th>"
+                     "<th>fitted value [95 %% interval]</th></tr>%s</table>" % rows)
+    else:
+        parts.append("<p>No library effect is selected.</p>")
+    items = ["replace: " + r["sentence"] for r in d["replace"]]
+    for m in d["parameter_misfit"]:
+        changes = ", ".join("%s %s → %s" % (name, number(m["old"].get(name, 0.0)), number(p["value"]))
+                            for name, p in m["params"].items())
+        items.append("refitted %s (%s channel, delta BIC %+.1f): %s" % (m["effect"], m["channel"], m["delta_bic"], changes))
+    items += [s["sentence"] for s in d["shared"]] + [n["sentence"] for n in d["not_selected"]]
+    items += ["unexplained: " + u["sentence"] for u in d["unexplained"]]
+    if not d["unexplained"]:
+        items.append("Nothing stays unexplained: with the selected effects no quantity fails any more.")
+    parts.append("<ul>%s</ul>" % "".join("<li>%s</li>" % html.escape(i) for i in items))
+    if report.get("next_command"):
+        parts.append("<p>To apply it:</p><pre class=\"next-command\">%s</pre>" % html.escape(report["next_command"]))
+    return "".join(parts)
+
+
 def page(directory, report):
     s = report["summary"]
     inputs = report.get("inputs", {})
@@ -167,6 +204,7 @@ def page(directory, report):
     failing = ("<table><tr><th>#</th><th>quantity</th><th>where and how</th><th>p (corrected)</th></tr>%s</table>"
                % rows) if rows else "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"])
     sections = [
+        ("Diagnosis", diagnosis_section(report)),
         ("The error across profiles", waterfall(report)),
         ("Where the model fails", failing),
         ("Spread misfit: range × incidence", heat_map(report, "range", "incidence", "spread", "spread part of the misfit")),
@@ -185,8 +223,10 @@ def page(directory, report):
 <html lang="en"><head><meta charset="utf-8"><title>lidartwin compare: %s</title>
 <style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;text-align:left}
-.summary td:first-child{font-weight:bold}</style></head><body>
+.summary td:first-child{font-weight:bold}.verdict{font-size:17px}
+pre{background:#f4f4f4;padding:6px;white-space:pre-wrap}</style></head><body>
 <h1>lidartwin compare</h1>
+<p class="verdict"><b>%s</b></p>
 <p>%s compared with profile <b>%s</b></p>
 <table class="summary">
 <tr><td>frames, pixels, returns</td><td>%d, %d, %d</td></tr>
@@ -203,7 +243,7 @@ window.addEventListener("load", () => {
   document.body.dataset.plotsRendered = images.filter((i) => i.complete && i.naturalWidth > 0).length;
 });
 </script></body></html>
-""" % (html.escape(str(inputs.get("capture", ""))), html.escape(str(inputs.get("capture", "the capture"))),
+""" % (html.escape(str(inputs.get("capture", ""))), html.escape(report.get("verdict_sentence", "")), html.escape(str(inputs.get("capture", "the capture"))),
        html.escape(str(inputs.get("profile", "?"))), s["frames"], s["pixels"], s["returns"], s["nll_per_pixel"],
        s["nll_expected"], s["nll_se"], excess, 100 * s["detection"]["measured"], 100 * s["detection"]["predicted"],
        s["z"]["mean"], s["z"]["std"], len(report["failing"]), s["alpha"], s["tests"], body)

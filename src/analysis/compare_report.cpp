@@ -142,6 +142,8 @@ nlohmann::json report_json(const CompareResult& result) {
   const MisfitSummary& s = misfit.summary;
   nlohmann::json report;
   report["schema"] = kCompareReportSchema;
+  report["verdict_sentence"] = verdict_sentence(result);
+  if (!result.next_command.empty()) report["next_command"] = result.next_command;
   report["inputs"] = inputs_json(result.inputs);
   report["summary"] = {{"frames", s.frames},
                        {"pixels", s.pixels},

@@ -1,12 +1,14 @@
 // `lidartwin compare`: a measured capture against the model of a profile, pixel by pixel, and a
 // report of where the model fails (DIR/report.json, DIR/pixels.npz, DIR/report.html).
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/format.h>
@@ -110,6 +112,44 @@ void write_outputs(const CompareFlags& flags, const CompareResult& result, const
   }
 }
 
+// An argument as a POSIX shell reads it back: quoted where it holds anything but safe characters.
+std::string shell_word(const std::string& word) {
+  const bool safe = !word.empty() && std::all_of(word.begin(), word.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("/._-+=:,@%").find(c) != std::string::npos;
+  });
+  if (safe) return word;
+  std::string out = "'";
+  for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// The `fit` that applies what the diagnosis found to the compared profile, on the same capture:
+// its replacements (--replace) and selected effects (--add), fitted again there. Empty when the
+// diagnosis neither adds nor replaces anything.
+std::string next_fit_command(const CompareFlags& flags, const Diagnosis& diagnosis) {
+  if (diagnosis.selected.empty() && diagnosis.replace.empty()) return "";
+  const MeasuredFlags& m = flags.measured;
+  std::string command = "lidartwin fit --capture " + shell_word(m.capture);
+  const auto option = [&](const char* name, const std::string& value) {
+    if (!value.empty()) command += fmt::format(" {} {}", name, shell_word(value));
+  };
+  option("--metadata", m.metadata);
+  option("--scene", m.scene);
+  option("--pose", m.pose);
+  if (m.time_offset_s != 0.0) option("--time-offset", fmt::format("{}", m.time_offset_s));
+  if (m.frames > 0) option("--frames", std::to_string(m.frames));
+  if (m.skip_frames > 0) option("--skip-frames", std::to_string(m.skip_frames));
+  if (m.static_mode) command += " --static";
+  if (m.map_mode) command += " --map";
+  if (m.refine_pose) command += " --refine-pose";
+  option("--profile", flags.profiles.back());
+  for (const Replacement& r : diagnosis.replace) option("--replace", r.effect + "=" + r.with.effect);
+  for (const Candidate& c : diagnosis.selected) option("--add", c.effect);
+  if (flags.refit_noise) command += " --refit-noise";
+  option("--out", (fs::path(flags.out) / "fitted.json").string());
+  return command;
+}
+
 void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
   if (in.registration) {
     const FrameRegistration& r = *in.registration;
@@ -155,7 +195,7 @@ void print_misfit(const CompareFlags& flags, const Misfit& misfit) {
   }
 }
 
-void print_diagnosis(const Diagnosis& diagnosis) {
+void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command) {
   std::printf("diagnosis on %zu pixels: %s\n", diagnosis.pixels, diagnosis.verdict.c_str());
   for (const ParameterMisfit& m : diagnosis.parameter_misfit) {
     std::string changes;
@@ -179,6 +219,7 @@ void print_diagnosis(const Diagnosis& diagnosis) {
   for (const SharedMisfit& shared : diagnosis.shared) std::printf("  %s\n", shared.sentence.c_str());
   for (const NotSelected& n : diagnosis.not_selected) std::printf("  %s\n", n.sentence.c_str());
   for (const UnexplainedMisfit& u : diagnosis.unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
+  if (!next_command.empty()) std::printf("  next: %s\n", next_command.c_str());
 }
 
 void print_waterfall(const std::vector<WaterfallStep>& waterfall) {
@@ -204,15 +245,17 @@ int run_compare(const CompareFlags& flags) {
   score_profiles(flags, measured, p, result, scored, steps);
   if (flags.diagnose) {
     result.diagnosis = diagnose_last(flags, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
+    result.next_command = next_fit_command(flags, *result.diagnosis);
   }
   write_outputs(flags, result, scored, steps);
 
   const MisfitSummary& s = result.misfit.summary;
+  std::printf("%s\n", verdict_sentence(result).c_str());
   std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
               result.inputs.capture.c_str(), result.inputs.profile.c_str());
   print_inputs(flags, result.inputs);
   print_misfit(flags, result.misfit);
-  if (result.diagnosis) print_diagnosis(*result.diagnosis);
+  if (result.diagnosis) print_diagnosis(*result.diagnosis, result.next_command);
   if (result.waterfall.size() > 1) print_waterfall(result.waterfall);
   std::string plots = "report.html not written (--no-plots)";
   if (flags.plots) {

@@ -56,8 +56,14 @@ struct CompareResult {
   double alpha = 0.01;
   std::vector<WaterfallStep> waterfall;  // every profile's row; written when there are several
   std::optional<Diagnosis> diagnosis;    // --diagnose
+  // The command that applies the diagnosis (`lidartwin fit ... --add ...`); empty: nothing to apply.
+  std::string next_command;
 };
 nlohmann::json report_json(const CompareResult& result);
+
+// What is wrong and what to do next, in one sentence: where the misfit lies (the two quantities
+// that carry most of it, each with its worst region), what --diagnose found, and the next command.
+std::string verdict_sentence(const CompareResult& result);
 
 // Every column of the table and of the scores, one array each (names: docs/compare-report.md).
 void write_pixels_npz(const std::filesystem::path& path, const PixelTable& table, const PixelScores& scores);
