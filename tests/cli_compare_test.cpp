@@ -115,7 +115,7 @@ class Compare : public ::testing::Test {
 TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   const fs::path dir = out("self");
   const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall + " --profile " + os1_64() +
-                             " --out " + dir.string());
+                             " --pixels --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("no region fails"), std::string::npos) << r.out;
   const nlohmann::json report = read_json(dir / "report.json");
@@ -152,6 +152,13 @@ TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
                              " --profile os1-32-paper --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   ASSERT_TRUE(fs::exists(dir / "report.html")) << r.out;
+  // By default no pixels.npz (--pixels): what compare writes of 20 frames of 64 x 1024 stays within
+  // 20 MB for 50 (the residual histograms come from report.json).
+  EXPECT_FALSE(fs::exists(dir / "pixels.npz"));
+  uintmax_t bytes = 0;
+  for (const auto& file : fs::directory_iterator(dir)) bytes += file.file_size();
+  std::printf("  compare wrote %ju bytes for 20 frames\n", bytes);
+  EXPECT_LT(bytes, 20u * 1000 * 1000 * 20 / 50);
   const std::string dom = browser_dom(dir);
   // The page opens with the verdict sentence, the one report.json and the terminal lead with.
   const std::string verdict = read_json(dir / "report.json")["verdict_sentence"];

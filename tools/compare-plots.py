@@ -1,11 +1,11 @@
 #!/usr/bin/python3
-"""report.json (+ pixels.npz) of `lidartwin compare` -> report.html, one self-contained page.
+"""report.json of `lidartwin compare` -> report.html, one self-contained page.
 
-Usage: tools/compare-plots.py DIR   (DIR holds report.json and pixels.npz; writes DIR/report.html)
+Usage: tools/compare-plots.py DIR   (DIR holds report.json; writes DIR/report.html)
 
 Debian's python3-numpy and python3-matplotlib only. Every plot is a PNG embedded as base64, so
 the page opens anywhere without the files next to it. The numbers come from report.json (its
-schema: docs/compare-report.md); the residual histograms read the per-pixel z of pixels.npz.
+schema: docs/compare-report.md), pixels.npz is not needed.
 """
 import base64
 import html
@@ -59,26 +59,26 @@ def heat_map(report, x, y, quantity, title):
     return png(fig)
 
 
-def residual_histograms(directory, report):
-    """Standardized range residuals per range band against the model's density (N(0, 1))."""
-    path = directory / "pixels.npz"
-    if not path.exists():
-        return "<p>pixels.npz not found: no residual histograms.</p>"
-    pixels = np.load(path)
-    z, ideal, measured, impossible = pixels["z"], pixels["ideal_range_m"], pixels["range_m"], pixels["impossible"]
-    keep = (measured > 0) & (ideal > 0) & (impossible == 0)
-    bands = [(0, 5), (5, 13), (13, 35), (35, 1e4)]
+def residual_histograms(report):
+    """Standardized range residuals per range band against the model's density (N(0, 1)), from
+    report.json's residual_histograms (z counted in bins over [-6, 6])."""
+    bands = report.get("residual_histograms")
+    if not bands:
+        return ""
     fig, axes = plt.subplots(1, len(bands), figsize=(12, 2.8), sharey=True)
     grid = np.linspace(-6, 6, 241)
     density = np.exp(-0.5 * grid ** 2) / math.sqrt(2 * math.pi)
-    for ax, (lo, hi) in zip(axes, bands):
-        band = z[keep & (ideal >= lo) & (ideal < hi)]
-        if band.size:
-            ax.hist(np.clip(band, -6, 6), bins=120, range=(-6, 6), density=True, color="#4477aa", label="measured")
+    for ax, band in zip(axes, bands):
+        counts = np.asarray(band["counts"], dtype=float)
+        edges = np.linspace(band["z"][0], band["z"][1], counts.size + 1)
+        if band["returns"]:
+            ax.stairs(counts / (band["returns"] * (edges[1] - edges[0])), edges, fill=True, color="#4477aa",
+                      label="measured")
         ax.plot(grid, density, color="#cc3311", label="model")
         ax.set_yscale("log")
         ax.set_ylim(1e-5, 1)
-        ax.set_title("range %g–%s m (%d returns)" % (lo, "∞" if hi > 1e3 else "%g" % hi, band.size), fontsize=9)
+        lo, hi = band["range_m"]
+        ax.set_title("range %g–%s m (%d returns)" % (lo, "∞" if hi > 1e3 else "%g" % hi, band["returns"]), fontsize=9)
         ax.set_xlabel("z")
     axes[0].legend(fontsize=8)
     return png(fig)
@@ -193,7 +193,7 @@ def diagnosis_section(report):
     return "".join(parts)
 
 
-def page(directory, report):
+def page(report):
     s = report["summary"]
     inputs = report.get("inputs", {})
     excess = (s["nll_per_pixel"] - s["nll_expected"]) / s["nll_se"] if s["nll_se"] > 0 else 0.0
@@ -212,7 +212,7 @@ def page(directory, report):
         ("Spread misfit: range × reflectivity",
          heat_map(report, "range", "reflectivity", "spread", "spread part of the misfit")),
         ("Bias misfit: range × reflectivity", heat_map(report, "range", "reflectivity", "bias", "bias part of the misfit")),
-        ("Range residuals per range band", residual_histograms(directory, report)),
+        ("Range residuals per range band", residual_histograms(report)),
         ("Detection", reliability(report)),
         ("PIT", pit(report)),
         ("Per beam", along(report, "beam", "beam")),
@@ -254,7 +254,7 @@ def main():
         sys.exit(__doc__)
     directory = Path(sys.argv[1])
     report = json.loads((directory / "report.json").read_text())
-    (directory / "report.html").write_text(page(directory, report), encoding="utf-8")
+    (directory / "report.html").write_text(page(report), encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -70,6 +70,26 @@ WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, co
   return w;
 }
 
+std::vector<ResidualHistogram> residual_histograms(const PixelTable& t, const PixelScores& s) {
+  std::vector<ResidualHistogram> bands;
+  for (const auto& [lo, hi] : {std::pair{0.0, 5.0}, {5.0, 13.0}, {13.0, 35.0}, {35.0, 1e4}}) {
+    bands.push_back({lo, hi, 0, std::vector<uint32_t>(ResidualHistogram::kBins, 0)});
+  }
+  constexpr double kHalfWidth = 6.0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double ideal = t.ideal_range_m[i];
+    if (t.range_m[i] <= 0.0f || ideal <= 0.0 || s.impossible[i]) continue;
+    for (ResidualHistogram& band : bands) {
+      if (ideal < band.lo_m || ideal >= band.hi_m) continue;
+      const double u = (static_cast<double>(s.z[i]) + kHalfWidth) / (2 * kHalfWidth);
+      const int k = std::clamp(static_cast<int>(u * ResidualHistogram::kBins), 0, ResidualHistogram::kBins - 1);
+      ++band.counts[static_cast<size_t>(k)];
+      ++band.returns;
+    }
+  }
+  return bands;
+}
+
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
   nlohmann::json out = nlohmann::json::array();
   for (const WaterfallStep& w : steps) {
@@ -179,6 +199,13 @@ nlohmann::json report_json(const CompareResult& result) {
   report["bins"] = std::move(bins);
   if (result.waterfall.size() > 1) report["waterfall"] = waterfall_json(result.waterfall);
   if (result.diagnosis) report["diagnosis"] = diagnosis_json(*result.diagnosis);
+  if (!result.residuals.empty()) {
+    nlohmann::json residuals = nlohmann::json::array();
+    for (const ResidualHistogram& h : result.residuals) {
+      residuals.push_back({{"range_m", {h.lo_m, h.hi_m}}, {"returns", h.returns}, {"z", {-6.0, 6.0}}, {"counts", h.counts}});
+    }
+    report["residual_histograms"] = std::move(residuals);
+  }
   return report;
 }
 

@@ -1,5 +1,5 @@
 // `lidartwin compare`: a measured capture against the model of a profile, pixel by pixel, and a
-// report of where the model fails (DIR/report.json, DIR/pixels.npz, DIR/report.html).
+// report of where the model fails (DIR/report.json, DIR/report.html; with --pixels DIR/pixels.npz).
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -36,6 +36,7 @@ struct CompareFlags {
   uint64_t seed = 0;
   size_t show = 10;
   bool plots = true;
+  bool pixels = false;
   bool diagnose = false;
   bool keep_profile = false;
   bool refit_noise = false;
@@ -100,13 +101,17 @@ Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, cons
   return diagnosis;
 }
 
-// DIR/report.json, DIR/pixels.npz and, for registered frames, DIR/registered_poses.tum.
+// DIR/report.json, with --pixels DIR/pixels.npz (117 bytes a pixel: 380 MB for 50 frames of
+// 64 x 1024) and, for registered frames, DIR/registered_poses.tum.
 void write_outputs(const CompareFlags& flags, const CompareResult& result, const Scored& scored, Steps& steps) {
   fs::create_directories(flags.out);
+  fs::remove(fs::path(flags.out) / "pixels.npz");  // an earlier run's, which this report does not describe
   write_json(fs::path(flags.out) / "report.json", report_json(result));
-  steps.start("writing pixels.npz");
-  write_pixels_npz(fs::path(flags.out) / "pixels.npz", *scored.table, scored.scores);
-  steps.done();
+  if (flags.pixels) {
+    steps.start("writing pixels.npz");
+    write_pixels_npz(fs::path(flags.out) / "pixels.npz", *scored.table, scored.scores);
+    steps.done();
+  }
   if (result.inputs.registration) {
     result.inputs.registration->trajectory.save_tum(fs::path(flags.out) / "registered_poses.tum");
   }
@@ -243,6 +248,7 @@ int run_compare(const CompareFlags& flags) {
   result.alpha = flags.alpha;
   Scored scored;
   score_profiles(flags, measured, p, result, scored, steps);
+  result.residuals = residual_histograms(*scored.table, scored.scores);
   if (flags.diagnose) {
     result.diagnosis = diagnose_last(flags, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
     result.next_command = next_fit_command(flags, *result.diagnosis);
@@ -263,14 +269,16 @@ int run_compare(const CompareFlags& flags) {
     plots = run_plot_script("compare-plots.py", flags.out, "report.html");
     steps.done();
   }
-  std::printf("wrote %s/report.json and %s/pixels.npz; %s\n", flags.out.c_str(), flags.out.c_str(), plots.c_str());
+  std::printf("wrote %s/report.json%s; %s\n", flags.out.c_str(),
+              flags.pixels ? (" and " + flags.out + "/pixels.npz").c_str() : "", plots.c_str());
   return 0;
 }
 
 void setup_compare(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<CompareFlags>();
   CLI::App* sub = app.add_subcommand(
-      "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/pixels.npz");
+      "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/report.html (--pixels: "
+      "DIR/pixels.npz)");
   add_measured_options(sub, flags->measured);
   sub->add_option("--profile", flags->profiles,
                   "profile whose effect chain is compared (name or .json); several: a waterfall of the error "
@@ -282,6 +290,9 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
       ->capture_default_str();
   sub->add_option("--seed", flags->seed, "seed of the PIT's tie-breaking draws")->capture_default_str();
   sub->add_flag("!--no-plots", flags->plots, "skip report.html (tools/compare-plots.py)");
+  sub->add_flag("--pixels", flags->pixels,
+                "also write DIR/pixels.npz, every pixel's measurement, prediction and score for numpy (117 bytes a "
+                "pixel)");
   sub->add_flag("--diagnose", flags->diagnose,
                 "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing");
   sub->add_flag("--keep-profile", flags->keep_profile,

@@ -32,6 +32,18 @@ struct WaterfallStep {
 WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit);
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps);
 
+// The standardized range residuals (z) of the returns in one band of ideal range, counted in
+// kResidualBins bins over [-6, 6], the outer ones taking what lies beyond: report.html's residual
+// histograms, from report.json alone (pixels.npz is written only on request).
+struct ResidualHistogram {
+  static constexpr int kBins = 120;
+  double lo_m = 0.0, hi_m = 0.0;
+  size_t returns = 0;
+  std::vector<uint32_t> counts;
+};
+// The bands 0-5, 5-13, 13-35 m and beyond; returns the model does not rule out.
+std::vector<ResidualHistogram> residual_histograms(const PixelTable& table, const PixelScores& scores);
+
 // What was compared: report.json's "inputs".
 struct CompareInputs {
   std::string capture, metadata, scene, pose;  // as given (a pose found beside a record directory's capture)
@@ -56,6 +68,7 @@ struct CompareResult {
   double alpha = 0.01;
   std::vector<WaterfallStep> waterfall;  // every profile's row; written when there are several
   std::optional<Diagnosis> diagnosis;    // --diagnose
+  std::vector<ResidualHistogram> residuals;
   // The command that applies the diagnosis (`lidartwin fit ... --add ...`); empty: nothing to apply.
   std::string next_command;
 };
