@@ -200,7 +200,7 @@ def page(report):
     rows = "".join(
         "<tr><td>%d</td><td>%s</td><td>%s</td><td>%.2g</td></tr>"
         % (i + 1, html.escape(f["quantity"]), html.escape(f["sentence"]), f["p_value"])
-        for i, f in enumerate(report["failing"][:25]))
+        for i, f in enumerate(report.get("failing_runs", report["failing"])[:25]))
     failing = ("<table><tr><th>#</th><th>quantity</th><th>where and how</th><th>p (corrected)</th></tr>%s</table>"
                % rows) if rows else "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"])
     sections = [

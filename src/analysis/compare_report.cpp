@@ -194,6 +194,18 @@ nlohmann::json report_json(const CompareResult& result) {
                        {"sentence", f.sentence}});
   }
   report["failing"] = std::move(failing);
+  nlohmann::json runs = nlohmann::json::array();
+  for (const FailingRun& run : failing_runs(misfit, result.inputs.material_names)) {
+    runs.push_back({{"quantity", run.quantity},
+                    {"features", region_json(run.region)},
+                    {"bins", run.bins},
+                    {"pixels", run.pixels},
+                    {"misfit_nats", run.misfit_nats},
+                    {"p_value", run.p_value},
+                    {"where", run.where},
+                    {"sentence", run.sentence}});
+  }
+  report["failing_runs"] = std::move(runs);
   nlohmann::json bins = nlohmann::json::array();
   for (const BinMisfit& b : misfit.bins) bins.push_back(bin_json(b));
   report["bins"] = std::move(bins);

@@ -25,14 +25,14 @@ std::string quantity_words(const std::string& quantity) {
 }
 
 // The two quantities that carry most of the failing misfit (nats over their failing regions), each
-// with its region of largest misfit: "the spread (worst: range 13–20 m)".
-std::string where_it_fails(const Misfit& misfit) {
+// with its run of largest misfit: "the spread (worst: range 13–35 m)".
+std::string where_it_fails(const CompareResult& result) {
   std::map<std::string, double> total;
-  std::map<std::string, const FailingRegion*> worst;
-  for (const FailingRegion& f : misfit.failing) {
-    total[f.quantity] += f.misfit_nats;
-    const FailingRegion*& w = worst[f.quantity];
-    if (w == nullptr || f.misfit_nats > w->misfit_nats) w = &f;
+  std::map<std::string, const FailingRun*> worst;
+  const std::vector<FailingRun> runs = failing_runs(result.misfit, result.inputs.material_names);
+  for (const FailingRun& run : runs) {  // largest first
+    total[run.quantity] += run.misfit_nats;
+    if (worst[run.quantity] == nullptr) worst[run.quantity] = &run;
   }
   std::vector<std::string> quantities;
   for (const auto& [quantity, nats] : total) quantities.push_back(quantity);
@@ -41,7 +41,7 @@ std::string where_it_fails(const Misfit& misfit) {
   quantities.resize(std::min<size_t>(quantities.size(), 2));
   std::vector<std::string> parts;
   for (const std::string& q : quantities) {
-    parts.push_back(fmt::format("{} (worst: {})", quantity_words(q), describe(worst[q]->region)));
+    parts.push_back(fmt::format("{} (worst: {})", quantity_words(q), worst[q]->where));
   }
   return joined(parts);
 }
@@ -81,7 +81,7 @@ std::string verdict_sentence(const CompareResult& result) {
                       result.alpha, s.tests, excess);
   } else {
     out = fmt::format("The model fails in {} region{}, most in {}", misfit.failing.size(),
-                      misfit.failing.size() == 1 ? "" : "s", where_it_fails(misfit));
+                      misfit.failing.size() == 1 ? "" : "s", where_it_fails(result));
   }
   if (result.diagnosis && (!misfit.failing.empty() || !result.diagnosis->selected.empty())) {
     out += "; " + diagnosis_words(*result.diagnosis);

@@ -182,7 +182,7 @@ void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
   }
 }
 
-void print_misfit(const CompareFlags& flags, const Misfit& misfit) {
+void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::vector<std::string>& material_names) {
   const MisfitSummary& s = misfit.summary;
   std::printf("NLL per pixel %.4f, expected %.4f +- %.4f if the model were true (%+.1f standard errors)\n",
               s.nll_per_pixel, s.nll_expected, s.nll_se,
@@ -193,10 +193,13 @@ void print_misfit(const CompareFlags& flags, const Misfit& misfit) {
     std::printf("no region fails at alpha %g (%zu tests, Bonferroni-corrected)\n", flags.alpha, s.tests);
     return;
   }
-  std::printf("%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected); worst first:\n",
-              misfit.failing.size(), flags.alpha, s.tests);
-  for (size_t i = 0; i < std::min(flags.show, misfit.failing.size()); ++i) {
-    std::printf("  %2zu. [%s] %s\n", i + 1, misfit.failing[i].quantity.c_str(), misfit.failing[i].sentence.c_str());
+  const std::vector<FailingRun> runs = failing_runs(misfit, material_names);
+  std::printf(
+      "%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected), %zu after merging neighbouring bins; "
+      "largest misfit first:\n",
+      misfit.failing.size(), flags.alpha, s.tests, runs.size());
+  for (size_t i = 0; i < std::min(flags.show, runs.size()); ++i) {
+    std::printf("  %2zu. [%s] %s\n", i + 1, runs[i].quantity.c_str(), runs[i].sentence.c_str());
   }
 }
 
@@ -260,7 +263,7 @@ int run_compare(const CompareFlags& flags) {
   std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
               result.inputs.capture.c_str(), result.inputs.profile.c_str());
   print_inputs(flags, result.inputs);
-  print_misfit(flags, result.misfit);
+  print_misfit(flags, result.misfit, result.inputs.material_names);
   if (result.diagnosis) print_diagnosis(*result.diagnosis, result.next_command);
   if (result.waterfall.size() > 1) print_waterfall(result.waterfall);
   std::string plots = "report.html not written (--no-plots)";

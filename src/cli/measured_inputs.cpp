@@ -78,6 +78,7 @@ std::unique_ptr<PoseSource> load_measured_poses(const fs::path& path) {
 struct SceneComparison {
   PixelTable table;
   std::optional<PoseRefinement> refinement;
+  std::vector<std::string> material_names;  // by Embree geometry id, the table's material
 };
 SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const MeasuredCapture& capture,
                             const EffectChain& chain, const SensorProfile& profile, Steps& steps) {
@@ -86,6 +87,7 @@ SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const 
   const Scene scene = Scene::load(flags.scene);
   steps.done();
   SceneComparison out;
+  for (unsigned g = 0; g < scene.geometry_count(); ++g) out.material_names.push_back(scene.material(g).name);
   std::unique_ptr<PoseSource> corrected;
   if (flags.refine_pose) {
     steps.start("registering the measured points to the scene");
@@ -241,6 +243,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
     SceneComparison compared = scene_table(flags, in, out.capture, chain, profile, steps);
     out.table = std::move(compared.table);
     out.inputs.pose_refinement = compared.refinement;
+    out.inputs.material_names = std::move(compared.material_names);
   }
   const LidarDataFormat& format = out.capture.metadata.format;
   CompareInputs& inputs = out.inputs;

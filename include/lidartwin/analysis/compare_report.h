@@ -59,7 +59,25 @@ struct CompareInputs {
   std::optional<PoseRefinement> pose_refinement;  // --refine-pose
   std::optional<FrameRegistration> registration;  // --map without --pose
   std::optional<MapExclusions> map;               // --map: what was compared and what left out
+  std::vector<std::string> material_names;        // the scene's, by material id (Embree geometry)
 };
+
+// A failing region as the report leads with it (report.json's "failing_runs"): neighbouring bins
+// of one feature that fail in the same quantity the same way merged into one run ("beams 40–44"),
+// runs ranked by the misfit they explain (nats in total, not per pixel, so a broad failure outranks
+// a narrow bin), materials named as the scene names them.
+struct FailingRun {
+  std::string quantity;
+  Region region;  // the run's span
+  size_t bins = 1;
+  size_t pixels = 0;
+  double misfit_nats = 0.0;
+  double p_value = 1.0;  // its bins' smallest (corrected)
+  std::string where;     // "beams 40–44", "material wall_grey (48)"
+  std::string sentence;
+};
+// material_names: by material id; empty or "" where the scene names none.
+std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std::string>& material_names);
 
 // Everything `compare` found; report.json is this, written by report_json alone.
 struct CompareResult {
