@@ -84,9 +84,9 @@ class Compare : public ::testing::Test {
     // ctest runs each test as its own process, several at once: each records its own capture.
     hall_ = fs::path(testing::TempDir()) / ("compare_hall_os1-64_" + std::to_string(getpid()));
     fs::remove_all(hall_);
-    const CliRun r = lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
-                               " --frames 20 --seed 11 --out " + hall_.string());
-    ASSERT_EQ(r.code, 0) << r.err;
+    recorded_ = lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
+                          " --frames 20 --seed 11 --out " + hall_.string());
+    ASSERT_EQ(recorded_.code, 0) << recorded_.err;
   }
   // The outputs are large (pixels.npz holds every pixel): none outlives the test process.
   static void TearDownTestSuite() {
@@ -109,8 +109,19 @@ class Compare : public ::testing::Test {
     return r.err;
   }
   static inline fs::path hall_;
+  static inline CliRun recorded_;  // the hall's record, as its user saw it
   static inline std::vector<fs::path> made_;
 };
+
+// A log shows what record did (stderr is a file here, not a terminal): its progress as plain lines,
+// and one line at the end saying what it wrote. The hall's pose is constant: no column_poses.tum.
+TEST_F(Compare, RecordLogsItsProgressAndEndsWithWhatItWrote) {
+  EXPECT_NE(recorded_.err.find("record: 20/20 frames, "), std::string::npos) << recorded_.err;
+  EXPECT_EQ(recorded_.err.find('\r'), std::string::npos) << "no terminal bar in a log";
+  EXPECT_EQ(recorded_.out, "recorded 20 frames of os1-64 (1024x10) to " + hall_.string() +
+                               ": capture.pcap, metadata.json, poses.tum\n");
+  EXPECT_FALSE(fs::exists(hall_ / "column_poses.tum"));
+}
 
 TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   const fs::path dir = out("self");
@@ -386,6 +397,7 @@ nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::st
   EXPECT_EQ(r.code, 0) << r.err;
   nlohmann::json report = read_json(out_dir / "report" / "report.json");
   report["terminal"] = r.out;
+  report["log"] = r.err;
   if (diagnose) {
     report["held_out"] = held_out_waterfall(" --capture " + capture.string() + " --scene " + kHall, os1_64(),
                                             report["diagnosis"], 10, out_dir);
@@ -548,6 +560,15 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
       << verdict;
   const std::string terminal = report["terminal"];
   EXPECT_EQ(first_line(terminal), verdict);
+  // In a log (stderr not a terminal): each step as plain lines, and the diagnosis candidate by candidate.
+  const std::string log = report["log"];
+  EXPECT_NE(log.find("scoring and binning: done in "), std::string::npos) << log;
+  EXPECT_NE(log.find("casting the capture's beams and predicting every pixel: 50 %\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("diagnosing: round 1: fitting dropout, "), std::string::npos) << log;
+  EXPECT_NE(log.find("diagnosing: round 2: fitting "), std::string::npos) << log;
+  EXPECT_EQ(log.find('\r'), std::string::npos) << log;
+  EXPECT_EQ(terminal.substr(terminal.rfind('\n', terminal.size() - 2) + 1),
+            "wrote " + dir.string() + "/report.json; report.html not written (--no-plots)\n");
   EXPECT_NE(terminal.find("  next: " + next + "\n"), std::string::npos) << terminal;
   ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tools/compare-plots.py " + dir.string()).c_str()), 0);
   const std::string dom = browser_dom(dir);

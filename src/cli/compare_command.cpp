@@ -96,6 +96,7 @@ Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, cons
   options.refit_profile = !flags.keep_profile;
   options.refit_range_noise = flags.refit_noise;
   options.datasheet_noise = datasheet_range_noise(profile.prod_line);
+  options.progress = [&steps](const std::string& what) { steps.note("diagnosing: " + what); };
   Diagnosis diagnosis = lidartwin::diagnose(table, chain, misfit, options);
   steps.done();
   return diagnosis;

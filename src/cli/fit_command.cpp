@@ -174,6 +174,7 @@ int run_fit(const FitFlags& flags) {
   options.alpha = flags.alpha;
   options.refit_range_noise = flags.refit_noise;
   options.datasheet_noise = datasheet_range_noise(profile.prod_line);
+  options.progress = [&steps](const std::string& what) { steps.note("fitting: " + what); };
   steps.start("fitting");
   const Fitted fitted =
       flags.automatic ? fit_automatically(measured, chain, options) : fit_as_asked(flags, measured, chain, options);

@@ -6,6 +6,7 @@
 // given it while the improvement stays significant, so two hidden effects are both found. The
 // profile's range noise law may instead have the wrong form: laws of the other forms are tried in
 // its place in the same rounds, and compared with the added effects by BIC.
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -121,6 +122,9 @@ struct DiagnoseOptions {
   // the form tried in place of a linear law; none: that form is not tried. With refit_profile,
   // the other forms (E2 alone, the linear law in place of a table) are always tried.
   std::optional<nlohmann::json> datasheet_noise;
+  // Told what the search does as it goes ("round 1: fitting incidence, 3 of 8"): a long search is
+  // not silent. None: quiet.
+  std::function<void(const std::string&)> progress;
 };
 
 // chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).
