@@ -110,7 +110,9 @@ struct Diagnosis {
 struct DiagnoseOptions {
   double alpha = 0.01;          // the LRT's level, Bonferroni-corrected over the candidates
   double min_delta_bic = 10.0;  // "very strong" evidence on the Kass-Raftery scale
-  size_t max_pixels = 200'000;  // evenly subsampled from the table for the fits
+  // The fits' pixels: every k-th that meets a surface, k = (their number / max_pixels) rounded down,
+  // so between max_pixels and twice that (an odd stride would fit every beam: effect_fit.cpp).
+  size_t max_pixels = 200'000;
   int max_effects = 3;
   // Refit the profile's own fittable effects first, where the profile fails somewhere (a profile
   // that fits everywhere keeps its values): compare --keep-profile turns it off.
