@@ -153,6 +153,14 @@ TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   pclose(pipe);
   EXPECT_EQ(std::string(line),
             std::to_string(20 * 1024 * 64) + " " + std::to_string(s["returns"].get<size_t>()) + " 33\n");
+  // Where nothing fails, the heat maps colour no cell: every cell is grey, with its pixel count.
+  const std::string html = slurp(dir / "report.html");
+  const std::string caption = "<p class=\"heat-map-caption\">";
+  size_t maps = 0;
+  for (size_t at = html.find(caption); at != std::string::npos; at = html.find(caption, at + 1), ++maps) {
+    EXPECT_EQ(html.substr(at + caption.size(), 5), "0 of ") << html.substr(at, 200);
+  }
+  EXPECT_EQ(maps, 4u);
 }
 
 // report.html as a user opens it: Debian's Chromium, headless (tools/test installs it). Every
@@ -517,6 +525,22 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   EXPECT_EQ(after["failing_regions"], 0);
   EXPECT_LT(after["bias_rms_m"].get<double>(), before["bias_rms_m"].get<double>());
   EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];  // the report is the last profile's
+  // Each profile has its own failing regions, in report.json and as a table of its own on the page.
+  EXPECT_FALSE(before["failing_runs"].empty());
+  EXPECT_TRUE(after["failing_runs"].empty());
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tools/compare-plots.py " + held_out.string()).c_str()), 0);
+  const std::string dom = browser_dom(held_out);
+  const std::string first = before["failing_runs"][0]["sentence"];
+  const size_t base_table = dom.find("<h3 class=\"profile-failing\">os1-64: " +
+                                     std::to_string(before["failing_regions"].get<int>()) + " failing regions</h3>");
+  ASSERT_NE(base_table, std::string::npos) << dom.substr(0, 3000);
+  EXPECT_NE(dom.find(first, base_table), std::string::npos) << first;
+  EXPECT_NE(dom.find("<h3 class=\"profile-failing\">fitted: 0 failing regions</h3><p>No region fails.</p>"),
+            std::string::npos)
+      << dom.substr(base_table, 3000);
+  // The waterfall's NLL is drawn above the best profile's (the fitted one here: 0 above).
+  EXPECT_NE(dom.find("<td>fitted</td><td>"), std::string::npos);
+  EXPECT_NE(dom.find("<td>+0.0000</td>"), std::string::npos) << dom.substr(0, 3000);
 
   const CliRun refused =
       lidartwin("fit" + measured + " --profile " + os1_64() + " --add fog --out " + (dir / "no.json").string());

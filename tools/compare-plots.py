@@ -34,29 +34,51 @@ def bins_of(report, names):
     return [b for b in report["bins"] if sorted(b["features"]) == sorted(names)]
 
 
+def count_label(n):
+    return "%d" % n if n < 1000 else "%.0fk" % (n / 1000) if n < 1e6 else "%.1fM" % (n / 1e6)
+
+
 def heat_map(report, x, y, quantity, title):
-    """A misfit part (nats per pixel) over two features, log colour scale."""
+    """A misfit part (nats per pixel) over two features, log colour scale, coloured only where the
+    bin's test of that quantity fails (grey: not significant at alpha), each cell with its pixels."""
     bins = bins_of(report, [x, y])
     if not bins:
         return ""
+    alpha = report["summary"]["alpha"]
     xs = sorted({tuple(b["features"][x]) for b in bins})
     ys = sorted({tuple(b["features"][y]) for b in bins})
     grid = np.full((len(ys), len(xs)), np.nan)
+    quiet = np.full((len(ys), len(xs)), np.nan)
+    counts = {}
     for b in bins:
         count = b["inliers"] if quantity in ("bias", "spread") else b["pixels"]
-        if count > 0:
-            value = b["misfit_nats"][quantity] / count
-            grid[ys.index(tuple(b["features"][y])), xs.index(tuple(b["features"][x]))] = max(value, 1e-6)
+        cell = (ys.index(tuple(b["features"][y])), xs.index(tuple(b["features"][x])))
+        counts[cell] = count
+        if count <= 0:
+            continue
+        if b["p_value"][quantity] < alpha:
+            grid[cell] = max(b["misfit_nats"][quantity] / count, 1e-6)
+        else:
+            quiet[cell] = 1.0
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    ax.imshow(quiet, origin="lower", aspect="auto", cmap=matplotlib.colors.ListedColormap(["#dddddd"]))
+    vmax = max(1e-3, np.nanmax(grid)) if np.isfinite(grid).any() else 1e-3
     image = ax.imshow(grid, origin="lower", aspect="auto", cmap="magma",
-                      norm=matplotlib.colors.LogNorm(vmin=1e-4, vmax=max(1e-3, np.nanmax(grid))))
+                      norm=matplotlib.colors.LogNorm(vmin=1e-4, vmax=vmax))
+    for (row, column), count in counts.items():
+        dark = np.isfinite(grid[row, column]) and grid[row, column] < math.sqrt(1e-4 * vmax)
+        ax.text(column, row, count_label(count), ha="center", va="center", fontsize=6,
+                color="white" if dark else "#333333")
     ax.set_xticks(range(len(xs)), ["%g–%g" % r for r in xs], rotation=45, ha="right", fontsize=7)
     ax.set_yticks(range(len(ys)), ["%g–%g" % r for r in ys], fontsize=7)
     ax.set_xlabel(x)
     ax.set_ylabel(y)
-    ax.set_title(title, fontsize=10)
+    ax.set_title("%s (grey: not significant at alpha %g; numbers: pixels)" % (title, alpha), fontsize=9)
     fig.colorbar(image, ax=ax, label="misfit, nats per pixel")
-    return png(fig)
+    failing = int(np.isfinite(grid).sum())
+    caption = ('<p class="heat-map-caption">%d of %d cells fail in the %s, coloured by their misfit; the other %d '
+               'are grey.</p>' % (failing, len(counts), quantity, len(counts) - failing))
+    return png(fig) + caption
 
 
 def residual_histograms(report):
@@ -128,17 +150,30 @@ def pit(report):
     return png(fig)
 
 
+def failing_table(runs, limit=25):
+    rows = "".join(
+        "<tr><td>%d</td><td>%s</td><td>%s</td><td>%s</td></tr>"
+        % (i + 1, html.escape(f["quantity"]), html.escape(f["sentence"]),
+           "%.2g" % f["p_value"] if f["p_value"] > 0 else "&lt; 1e-300")
+        for i, f in enumerate(runs[:limit]))
+    return ("<table class=\"failing\"><tr><th>#</th><th>quantity</th><th>where and how</th>"
+            "<th>p (corrected)</th></tr>%s</table>" % rows) if rows else ""
+
+
 def waterfall(report):
-    """The error across the compared profiles (compare --profile A --profile B ...), same pixels."""
+    """The error across the compared profiles (compare --profile A --profile B ...), same pixels: the
+    NLL above the best profile's (so the best is 0, and no bar reads as better than the truth), and
+    each profile's own failing regions."""
     steps = report.get("waterfall")
     if not steps:
         return ""
     names = [w["profile"] for w in steps]
     excess = [(w["nll_per_pixel"] - w["nll_expected"]) / w["nll_se"] if w["nll_se"] > 0 else 0 for w in steps]
+    best = min(w["nll_per_pixel"] for w in steps)
     fig, (left, middle, right) = plt.subplots(1, 3, figsize=(12, 3))
-    left.bar(names, excess, color="#4477aa")
+    left.bar(names, [w["nll_per_pixel"] - best for w in steps], color="#4477aa")
     left.axhline(0, color="gray", lw=1)
-    left.set_ylabel("NLL excess, standard errors")
+    left.set_ylabel("NLL above the best profile,\nnats per pixel")
     middle.bar(names, [1000 * w["bias_rms_m"] for w in steps], color="#ee7733")
     middle.set_ylabel("bias RMS over bins, mm")
     right.bar(names, [w["failing_regions"] for w in steps], color="#cc3311")
@@ -146,14 +181,20 @@ def waterfall(report):
     for ax in (left, middle, right):
         ax.tick_params(axis="x", rotation=30, labelsize=8)
     fig.suptitle("the error as the profile improves", fontsize=10)
-    fig.subplots_adjust(wspace=0.4)
-    rows = "".join("<tr><td>%s</td><td>%.4f</td><td>%+.1f</td><td>%.1f mm</td><td>%.2f</td><td>%.4f</td><td>%d</td></tr>"
-                   % (html.escape(w["profile"]), w["nll_per_pixel"], e, 1000 * w["bias_rms_m"],
-                      w["spread_ratio_median"], w["detection_log_loss"], w["failing_regions"])
+    fig.subplots_adjust(wspace=0.45)
+    rows = "".join("<tr><td>%s</td><td>%.4f</td><td>%+.4f</td><td>%+.1f</td><td>%.1f mm</td><td>%.2f</td>"
+                   "<td>%.4f</td><td>%d</td></tr>"
+                   % (html.escape(w["profile"]), w["nll_per_pixel"], w["nll_per_pixel"] - best, e,
+                      1000 * w["bias_rms_m"], w["spread_ratio_median"], w["detection_log_loss"], w["failing_regions"])
                    for w, e in zip(steps, excess))
-    return ("<table><tr><th>profile</th><th>NLL/pixel</th><th>excess (SE)</th><th>bias RMS</th>"
-            "<th>median spread ratio</th><th>detection log-loss</th><th>failing</th></tr>%s</table>%s"
-            % (rows, png(fig)))
+    tables = "".join(
+        '<h3 class="profile-failing">%s: %d failing regions</h3>%s'
+        % (html.escape(w["profile"]), w["failing_regions"],
+           failing_table(w.get("failing_runs", []), 10) or "<p>No region fails.</p>")
+        for w in steps)
+    return ("<table><tr><th>profile</th><th>NLL/pixel</th><th>above the best</th><th>excess over its own "
+            "expectation (SE)</th><th>bias RMS</th><th>median spread ratio</th><th>detection log-loss</th>"
+            "<th>failing</th></tr>%s</table>%s%s" % (rows, png(fig), tables))
 
 
 def number(value):
@@ -197,12 +238,8 @@ def page(report):
     s = report["summary"]
     inputs = report.get("inputs", {})
     excess = (s["nll_per_pixel"] - s["nll_expected"]) / s["nll_se"] if s["nll_se"] > 0 else 0.0
-    rows = "".join(
-        "<tr><td>%d</td><td>%s</td><td>%s</td><td>%.2g</td></tr>"
-        % (i + 1, html.escape(f["quantity"]), html.escape(f["sentence"]), f["p_value"])
-        for i, f in enumerate(report.get("failing_runs", report["failing"])[:25]))
-    failing = ("<table><tr><th>#</th><th>quantity</th><th>where and how</th><th>p (corrected)</th></tr>%s</table>"
-               % rows) if rows else "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"])
+    failing = (failing_table(report.get("failing_runs", report["failing"]))
+               or "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"]))
     sections = [
         ("Diagnosis", diagnosis_section(report)),
         ("The error across profiles", waterfall(report)),

@@ -38,9 +38,11 @@ nlohmann::json bin_json(const BinMisfit& b) {
 
 }  // namespace
 
-WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, const Misfit& misfit) {
+WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, const Misfit& misfit,
+                             const std::vector<std::string>& material_names) {
   WaterfallStep w;
   w.profile = profile;
+  w.failing_runs = failing_runs(misfit, material_names);
   w.nll_per_pixel = misfit.summary.nll_per_pixel;
   w.nll_expected = misfit.summary.nll_expected;
   w.nll_se = misfit.summary.nll_se;
@@ -90,6 +92,25 @@ std::vector<ResidualHistogram> residual_histograms(const PixelTable& t, const Pi
   return bands;
 }
 
+namespace {
+
+nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const FailingRun& run : runs) {
+    out.push_back({{"quantity", run.quantity},
+                   {"features", region_json(run.region)},
+                   {"bins", run.bins},
+                   {"pixels", run.pixels},
+                   {"misfit_nats", run.misfit_nats},
+                   {"p_value", run.p_value},
+                   {"where", run.where},
+                   {"sentence", run.sentence}});
+  }
+  return out;
+}
+
+}  // namespace
+
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
   nlohmann::json out = nlohmann::json::array();
   for (const WaterfallStep& w : steps) {
@@ -100,7 +121,8 @@ nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
                    {"bias_rms_m", w.bias_rms_m},
                    {"spread_ratio_median", w.spread_ratio_median},
                    {"detection_log_loss", w.detection_log_loss},
-                   {"failing_regions", w.failing}});
+                   {"failing_regions", w.failing},
+                   {"failing_runs", runs_json(w.failing_runs)}});
   }
   return out;
 }
@@ -194,18 +216,7 @@ nlohmann::json report_json(const CompareResult& result) {
                        {"sentence", f.sentence}});
   }
   report["failing"] = std::move(failing);
-  nlohmann::json runs = nlohmann::json::array();
-  for (const FailingRun& run : failing_runs(misfit, result.inputs.material_names)) {
-    runs.push_back({{"quantity", run.quantity},
-                    {"features", region_json(run.region)},
-                    {"bins", run.bins},
-                    {"pixels", run.pixels},
-                    {"misfit_nats", run.misfit_nats},
-                    {"p_value", run.p_value},
-                    {"where", run.where},
-                    {"sentence", run.sentence}});
-  }
-  report["failing_runs"] = std::move(runs);
+  report["failing_runs"] = runs_json(failing_runs(misfit, result.inputs.material_names));
   nlohmann::json bins = nlohmann::json::array();
   for (const BinMisfit& b : misfit.bins) bins.push_back(bin_json(b));
   report["bins"] = std::move(bins);

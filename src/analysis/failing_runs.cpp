@@ -31,7 +31,13 @@ std::string millimetres(double m) {
   const double mm = 1000.0 * std::abs(m);
   return mm < 10.0 ? fmt::format("{:.1f} mm", mm) : fmt::format("{:.0f} mm", mm);
 }
-std::string percent(double f) { return f < 0.1 ? fmt::format("{:.1f} %", 100 * f) : fmt::format("{:.0f} %", 100 * f); }
+// Digits where they tell rates apart: near 0 (outliers) and near 1 (detection).
+std::string percent(double f) {
+  if (f < 0.001) return fmt::format("{:.3f} %", 100 * f);
+  if (f < 0.1) return fmt::format("{:.1f} %", 100 * f);
+  if (f > 0.99 && f < 1.0) return fmt::format("{:.2f} %", std::min(100 * f, 99.99));  // not 1 unless 1
+  return fmt::format("{:.0f} %", 100 * f);
+}
 
 // "3.1–5.2 mm", or one value when the run's bins agree to the digits shown.
 template <typename Format>

@@ -83,7 +83,8 @@ void score_profiles(const CompareFlags& flags, const Measured& measured, const P
     }
     scored.scores = score_pixels(*scored.table, flags.seed);
     result.misfit = find_misfit(*scored.table, scored.scores, measured.capture.frames.size(), options);
-    result.waterfall.push_back(waterfall_step(p.profiles[k].name, *scored.table, result.misfit));
+    result.waterfall.push_back(
+        waterfall_step(p.profiles[k].name, *scored.table, result.misfit, measured.inputs.material_names));
     steps.done();
   }
 }

@@ -19,6 +19,23 @@ namespace lidartwin {
 
 inline constexpr const char* kCompareReportSchema = "lidartwin.compare/1";
 
+// A failing region as the report leads with it (report.json's "failing_runs"): neighbouring bins
+// of one feature that fail in the same quantity the same way merged into one run ("beams 40–44"),
+// runs ranked by the misfit they explain (nats in total, not per pixel, so a broad failure outranks
+// a narrow bin), materials named as the scene names them.
+struct FailingRun {
+  std::string quantity;
+  Region region;  // the run's span
+  size_t bins = 1;
+  size_t pixels = 0;
+  double misfit_nats = 0.0;
+  double p_value = 1.0;  // its bins' smallest (corrected)
+  std::string where;     // "beams 40–44", "material wall_grey (48)"
+  std::string sentence;
+};
+// material_names: by material id; empty or "" where the scene names none.
+std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std::string>& material_names);
+
 // One profile's row of the waterfall (lidar-physics.md 3.6): the error measures that fall as the
 // model improves, on the same pixels.
 struct WaterfallStep {
@@ -28,8 +45,11 @@ struct WaterfallStep {
   double spread_ratio_median = 1.0;  // median over those bins
   double detection_log_loss = 0.0;   // per pixel that meets a surface
   size_t failing = 0;
+  std::vector<FailingRun> failing_runs;  // its own, largest misfit first (report.html's table)
 };
-WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit);
+// material_names: as failing_runs takes them.
+WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit,
+                             const std::vector<std::string>& material_names = {});
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps);
 
 // The standardized range residuals (z) of the returns in one band of ideal range, counted in
@@ -61,23 +81,6 @@ struct CompareInputs {
   std::optional<MapExclusions> map;               // --map: what was compared and what left out
   std::vector<std::string> material_names;        // the scene's, by material id (Embree geometry)
 };
-
-// A failing region as the report leads with it (report.json's "failing_runs"): neighbouring bins
-// of one feature that fail in the same quantity the same way merged into one run ("beams 40–44"),
-// runs ranked by the misfit they explain (nats in total, not per pixel, so a broad failure outranks
-// a narrow bin), materials named as the scene names them.
-struct FailingRun {
-  std::string quantity;
-  Region region;  // the run's span
-  size_t bins = 1;
-  size_t pixels = 0;
-  double misfit_nats = 0.0;
-  double p_value = 1.0;  // its bins' smallest (corrected)
-  std::string where;     // "beams 40–44", "material wall_grey (48)"
-  std::string sentence;
-};
-// material_names: by material id; empty or "" where the scene names none.
-std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std::string>& material_names);
 
 // Everything `compare` found; report.json is this, written by report_json alone.
 struct CompareResult {
