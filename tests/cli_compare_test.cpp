@@ -186,6 +186,17 @@ TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
   EXPECT_NE(verdict_at, std::string::npos) << verdict << "\n" << dom.substr(0, 2000);
   EXPECT_LT(verdict_at, dom.find("<h2>"));
   EXPECT_NE(verdict.find("run the same compare with --diagnose"), std::string::npos) << verdict;
+  // A range image (beam x azimuth) of the misfit for each quantity that fails, beside the heat maps.
+  const nlohmann::json report = read_json(dir / "report.json");
+  std::set<std::string> failing;
+  for (const auto& f : report["failing"]) failing.insert(f["quantity"]);
+  const auto& image = report["range_image"];
+  ASSERT_EQ(image["quantities"].size(), failing.size()) << image["quantities"].dump().substr(0, 300);
+  for (const std::string& quantity : failing) {
+    ASSERT_TRUE(image["quantities"].contains(quantity)) << quantity;
+    EXPECT_EQ(image["quantities"][quantity].size(), 64u * image["azimuth_bins"].get<size_t>()) << quantity;
+    EXPECT_NE(dom.find("<h2>Range image: " + quantity + "</h2><img"), std::string::npos) << quantity;
+  }
   const auto attribute = [&](const std::string& name) {
     const size_t at = dom.find(name + "=\"");
     return at == std::string::npos ? -1 : std::stoi(dom.substr(at + name.size() + 2));

@@ -106,6 +106,45 @@ def residual_histograms(report):
     return png(fig)
 
 
+IMAGE_TITLES = {
+    "bias": ("mean z of the returns (0 if the model is right)", "RdBu_r"),
+    "spread": ("sd of z of the returns (1 if the model is right)", "viridis"),
+    "detection": ("measured minus predicted return rate", "RdBu"),
+    "outliers": ("share of returns beyond 5 sigma", "magma"),
+}
+
+
+def range_images(report):
+    """One beam × azimuth image per failing quantity (report.json's range_image): where on the
+    sensor's own picture the misfit lies."""
+    image = report.get("range_image")
+    if not image:
+        return []
+    beams, sectors = image["beams"], image["azimuth_bins"]
+    sections = []
+    for quantity, values in image["quantities"].items():
+        grid = np.array([np.nan if v is None else v for v in values], dtype=float).reshape(beams, sectors)
+        label, cmap = IMAGE_TITLES[quantity]
+        finite = grid[np.isfinite(grid)]
+        if quantity == "spread":
+            norm = matplotlib.colors.TwoSlopeNorm(vcenter=1.0, vmin=min(0.5, finite.min(initial=1.0)),
+                                                  vmax=max(1.5, finite.max(initial=1.0)))
+        elif quantity == "outliers":
+            norm = matplotlib.colors.Normalize(vmin=0.0, vmax=max(1e-3, finite.max(initial=0.0)))
+        else:
+            limit = max(1e-3, np.abs(finite).max(initial=0.0))
+            norm = matplotlib.colors.Normalize(vmin=-limit, vmax=limit)
+        fig, ax = plt.subplots(figsize=(12, 2.2 + beams / 64))
+        shown = ax.imshow(grid, origin="upper", aspect="auto", cmap=cmap, norm=norm, interpolation="nearest",
+                          extent=(0, 360, beams - 0.5, -0.5))
+        ax.set_xlabel("azimuth (encoder angle), °")
+        ax.set_ylabel("beam")
+        ax.set_title("%s: %s, beam × azimuth (blank: no pixel meets a surface)" % (quantity, label), fontsize=9)
+        fig.colorbar(shown, ax=ax, label=quantity)
+        sections.append(("Range image: %s" % quantity, png(fig)))
+    return sections
+
+
 def reliability(report):
     """Measured against predicted detection rate, one point per bin of every single feature."""
     fig, ax = plt.subplots(figsize=(4, 4))
@@ -249,6 +288,7 @@ def page(report):
         ("Spread misfit: range × reflectivity",
          heat_map(report, "range", "reflectivity", "spread", "spread part of the misfit")),
         ("Bias misfit: range × reflectivity", heat_map(report, "range", "reflectivity", "bias", "bias part of the misfit")),
+    ] + range_images(report) + [
         ("Range residuals per range band", residual_histograms(report)),
         ("Detection", reliability(report)),
         ("PIT", pit(report)),

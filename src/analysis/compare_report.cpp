@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "lidartwin/analysis/npz_writer.h"
 
@@ -92,7 +93,72 @@ std::vector<ResidualHistogram> residual_histograms(const PixelTable& t, const Pi
   return bands;
 }
 
+RangeImage range_image(const PixelTable& t, const PixelScores& s, const Misfit& misfit) {
+  RangeImage image;
+  for (const uint16_t beam : t.beam) image.beams = std::max(image.beams, beam + 1);
+  const size_t cells = static_cast<size_t>(image.beams) * RangeImage::kAzimuthBins;
+  struct Cell {
+    double pixels = 0, returns = 0, expected = 0, inliers = 0, z = 0, z2 = 0, outliers = 0;
+  };
+  std::vector<Cell> acc(cells);
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.ideal_range_m[i] <= 0.0f) continue;
+    const double turn = std::fmod(static_cast<double>(t.azimuth_deg[i]) / 360.0 + 1.0, 1.0);
+    const int sector = std::min(static_cast<int>(turn * RangeImage::kAzimuthBins), RangeImage::kAzimuthBins - 1);
+    Cell& c = acc[static_cast<size_t>(t.beam[i]) * RangeImage::kAzimuthBins + static_cast<size_t>(sector)];
+    c.pixels += 1;
+    c.expected += static_cast<double>(t.p_detect[i]);
+    if (t.range_m[i] <= 0.0f || s.impossible[i]) continue;
+    c.returns += 1;
+    const double z = s.z[i];
+    if (std::abs(z) > 5.0) {
+      c.outliers += 1;
+      continue;
+    }
+    c.inliers += 1;
+    c.z += z;
+    c.z2 += z * z;
+  }
+  image.pixels.resize(cells);
+  for (size_t k = 0; k < cells; ++k) image.pixels[k] = static_cast<uint32_t>(acc[k].pixels);
+  const auto fails = [&](const std::string& q) {
+    return std::any_of(misfit.failing.begin(), misfit.failing.end(), [&](const auto& f) { return f.quantity == q; });
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const auto add = [&](const char* quantity, auto value) {
+    if (!fails(quantity)) return;
+    std::vector<float> values(cells);
+    for (size_t k = 0; k < cells; ++k) values[k] = static_cast<float>(value(acc[k]));
+    image.quantities.emplace_back(quantity, std::move(values));
+  };
+  add("bias", [&](const Cell& c) { return c.inliers > 0 ? c.z / c.inliers : nan; });
+  add("spread", [&](const Cell& c) {
+    if (c.inliers < 2) return nan;
+    const double mean = c.z / c.inliers;
+    return std::sqrt(std::max(c.z2 / c.inliers - mean * mean, 0.0));
+  });
+  add("detection", [&](const Cell& c) { return c.pixels > 0 ? (c.returns - c.expected) / c.pixels : nan; });
+  add("outliers", [&](const Cell& c) { return c.returns > 0 ? c.outliers / c.returns : nan; });
+  return image;
+}
+
 namespace {
+
+nlohmann::json image_json(const RangeImage& image) {
+  nlohmann::json quantities = nlohmann::json::object();
+  for (const auto& [name, values] : image.quantities) {
+    nlohmann::json rounded = nlohmann::json::array();
+    for (const float v : values) {  // 4 digits are all a picture shows; NaN is written as null
+      rounded.push_back(std::isfinite(v) ? nlohmann::json(std::round(static_cast<double>(v) * 1e4) / 1e4) : nlohmann::json());
+    }
+    quantities[name] = std::move(rounded);
+  }
+  return {{"beams", image.beams},
+          {"azimuth_bins", RangeImage::kAzimuthBins},
+          {"layout", "beam-major: index beam * azimuth_bins + sector; sector k covers [k, k + 1) * 360 / azimuth_bins deg"},
+          {"pixels", image.pixels},
+          {"quantities", quantities}};
+}
 
 nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
   nlohmann::json out = nlohmann::json::array();
@@ -222,6 +288,7 @@ nlohmann::json report_json(const CompareResult& result) {
   report["bins"] = std::move(bins);
   if (result.waterfall.size() > 1) report["waterfall"] = waterfall_json(result.waterfall);
   if (result.diagnosis) report["diagnosis"] = diagnosis_json(*result.diagnosis);
+  if (result.image) report["range_image"] = image_json(*result.image);
   if (!result.residuals.empty()) {
     nlohmann::json residuals = nlohmann::json::array();
     for (const ResidualHistogram& h : result.residuals) {

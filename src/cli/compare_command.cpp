@@ -254,6 +254,7 @@ int run_compare(const CompareFlags& flags) {
   Scored scored;
   score_profiles(flags, measured, p, result, scored, steps);
   result.residuals = residual_histograms(*scored.table, scored.scores);
+  if (!result.misfit.failing.empty()) result.image = range_image(*scored.table, scored.scores, result.misfit);
   if (flags.diagnose) {
     result.diagnosis = diagnose_last(flags, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
     result.next_command = next_fit_command(flags, *result.diagnosis);

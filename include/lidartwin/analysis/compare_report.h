@@ -64,6 +64,19 @@ struct ResidualHistogram {
 // The bands 0-5, 5-13, 13-35 m and beyond; returns the model does not rule out.
 std::vector<ResidualHistogram> residual_histograms(const PixelTable& table, const PixelScores& scores);
 
+// The misfit as a range image (report.json's "range_image"): beam x azimuth sector, one image per
+// quantity that fails anywhere, so a user sees where on the sensor's own picture it lies. Per cell:
+// bias, the mean z of the inliers (|z| <= 5); spread, their sd (1 where the model is right);
+// detection, the measured minus the predicted return rate of the pixels that meet a surface;
+// outliers, the share of returns beyond 5 sigma. NaN where a cell has no such pixel.
+struct RangeImage {
+  static constexpr int kAzimuthBins = 128;
+  int beams = 0;
+  std::vector<uint32_t> pixels;  // beam-major, beams x kAzimuthBins
+  std::vector<std::pair<std::string, std::vector<float>>> quantities;
+};
+RangeImage range_image(const PixelTable& table, const PixelScores& scores, const Misfit& misfit);
+
 // What was compared: report.json's "inputs".
 struct CompareInputs {
   std::string capture, metadata, scene, pose;  // as given (a pose found beside a record directory's capture)
@@ -90,6 +103,7 @@ struct CompareResult {
   std::vector<WaterfallStep> waterfall;  // every profile's row; written when there are several
   std::optional<Diagnosis> diagnosis;    // --diagnose
   std::vector<ResidualHistogram> residuals;
+  std::optional<RangeImage> image;
   // The command that applies the diagnosis (`lidartwin fit ... --add ...`); empty: nothing to apply.
   std::string next_command;
 };
