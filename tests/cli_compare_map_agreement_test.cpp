@@ -144,8 +144,8 @@ class MapAgreement : public ::testing::Test {
     j.hidden = hidden;
     for (const bool map : {false, true}) {
       const fs::path out = dir_ / (name + (map ? "_map" : "_scene"));
-      const CliRun r = run_cli(std::string("compare --diagnose --no-plots --pixels") + (map ? " --map" : scene) + inputs +
-                               " --out " + out.string());
+      const CliRun r = run_cli(std::string("compare --diagnose --no-plots --pixels") + (map ? " --map" : scene) +
+                               inputs + " --out " + out.string());
       ASSERT_EQ(r.exit_code, 0) << r.output;
       (map ? j.map : j.scene) = read_json(out / "report.json");
     }

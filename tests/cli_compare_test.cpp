@@ -71,9 +71,9 @@ const std::string kBrowser =
 // DIR/report.html's DOM after its scripts ran; the browser's log in DIR/browser.log.
 std::string browser_dom(const fs::path& dir) {
   const std::string page = "file://" + (dir / "report.html").string();
-  const int code = std::system((kBrowser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" +
-                                (dir / "browser.log").string())
-                                   .c_str());
+  const int code = std::system(
+      (kBrowser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" + (dir / "browser.log").string())
+          .c_str());
   EXPECT_EQ(code, 0) << slurp(dir / "browser.log");
   return slurp(dir / "dom.html");
 }
@@ -542,8 +542,9 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tools/compare-plots.py " + held_out.string()).c_str()), 0);
   const std::string dom = browser_dom(held_out);
   const std::string first = before["failing_runs"][0]["sentence"];
-  const size_t base_table = dom.find("<h3 class=\"profile-failing\">os1-64: " +
-                                     std::to_string(before["failing_regions"].get<int>()) + " failing regions</h3>");
+  const size_t base_table =
+      dom.find("<h3 class=\"profile-failing\">os1-64: " + std::to_string(before["failing_regions"].get<int>()) +
+               " failing regions</h3>");
   ASSERT_NE(base_table, std::string::npos) << dom.substr(0, 3000);
   EXPECT_NE(dom.find(first, base_table), std::string::npos) << first;
   EXPECT_NE(dom.find("<h3 class=\"profile-failing\">fitted: 0 failing regions</h3><p>No region fails.</p>"),
@@ -587,8 +588,8 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   // command is the fit held_out_waterfall ran, on every frame and into the report's directory.
   const fs::path dir = e5 / "report";
   const std::string next = report["next_command"], verdict = report["verdict_sentence"];
-  EXPECT_EQ(next, "lidartwin fit --capture " + (e5 / "capture").string() + " --scene " + kHall +
-                      " --profile " + os1_64() + " --add dropout --out " + (dir / "fitted.json").string());
+  EXPECT_EQ(next, "lidartwin fit --capture " + (e5 / "capture").string() + " --scene " + kHall + " --profile " +
+                      os1_64() + " --add dropout --out " + (dir / "fitted.json").string());
   EXPECT_EQ(verdict.rfind("The model fails in ", 0), 0u) << verdict;
   EXPECT_NE(verdict.find("most in detection (worst: "), std::string::npos) << verdict;
   EXPECT_NE(verdict.find("; --diagnose says dropout (E5) is missing: run `" + next + "`."), std::string::npos)

@@ -149,15 +149,17 @@ nlohmann::json image_json(const RangeImage& image) {
   for (const auto& [name, values] : image.quantities) {
     nlohmann::json rounded = nlohmann::json::array();
     for (const float v : values) {  // 4 digits are all a picture shows; NaN is written as null
-      rounded.push_back(std::isfinite(v) ? nlohmann::json(std::round(static_cast<double>(v) * 1e4) / 1e4) : nlohmann::json());
+      rounded.push_back(std::isfinite(v) ? nlohmann::json(std::round(static_cast<double>(v) * 1e4) / 1e4)
+                                         : nlohmann::json());
     }
     quantities[name] = std::move(rounded);
   }
-  return {{"beams", image.beams},
-          {"azimuth_bins", RangeImage::kAzimuthBins},
-          {"layout", "beam-major: index beam * azimuth_bins + sector; sector k covers [k, k + 1) * 360 / azimuth_bins deg"},
-          {"pixels", image.pixels},
-          {"quantities", quantities}};
+  return {
+      {"beams", image.beams},
+      {"azimuth_bins", RangeImage::kAzimuthBins},
+      {"layout", "beam-major: index beam * azimuth_bins + sector; sector k covers [k, k + 1) * 360 / azimuth_bins deg"},
+      {"pixels", image.pixels},
+      {"quantities", quantities}};
 }
 
 nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
@@ -292,7 +294,8 @@ nlohmann::json report_json(const CompareResult& result) {
   if (!result.residuals.empty()) {
     nlohmann::json residuals = nlohmann::json::array();
     for (const ResidualHistogram& h : result.residuals) {
-      residuals.push_back({{"range_m", {h.lo_m, h.hi_m}}, {"returns", h.returns}, {"z", {-6.0, 6.0}}, {"counts", h.counts}});
+      residuals.push_back(
+          {{"range_m", {h.lo_m, h.hi_m}}, {"returns", h.returns}, {"z", {-6.0, 6.0}}, {"counts", h.counts}});
     }
     report["residual_histograms"] = std::move(residuals);
   }

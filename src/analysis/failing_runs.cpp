@@ -77,8 +77,8 @@ std::string run_sentence(const std::vector<const FailingRegion*>& bins, const st
   const auto [plo, phi] = std::minmax_element(predicted.begin(), predicted.end());
   const std::string count = fmt::format("{} bins, {} pixels", bins.size(), pixels);
   if (q == "bias") {
-    return fmt::format("{}: the measured range is {} {} than the model's ({})", place,
-                       span(*rlo, *rhi, millimetres), *rlo > 0 ? "longer" : "shorter", count);
+    return fmt::format("{}: the measured range is {} {} than the model's ({})", place, span(*rlo, *rhi, millimetres),
+                       *rlo > 0 ? "longer" : "shorter", count);
   }
   if (q == "spread") {
     return fmt::format("{}: the measured spread is {} times the model's ({})", place,

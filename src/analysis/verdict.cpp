@@ -59,8 +59,8 @@ std::string diagnosis_words(const Diagnosis& d) {
   if (!found.empty()) return "--diagnose says " + joined(found);
   if (!d.unexplained.empty()) {
     const UnexplainedMisfit& u = d.unexplained.front();
-    return fmt::format("--diagnose finds no library effect that explains it ({} follows {})", quantity_words(u.quantity),
-                       u.features.empty() ? std::string("no feature") : joined(u.features));
+    return fmt::format("--diagnose finds no library effect that explains it ({} follows {})",
+                       quantity_words(u.quantity), u.features.empty() ? std::string("no feature") : joined(u.features));
   }
   std::vector<std::string> refitted;
   for (const ParameterMisfit& m : d.parameter_misfit) refitted.push_back(m.refit.effect);
@@ -76,9 +76,10 @@ std::string verdict_sentence(const CompareResult& result) {
   const double excess = s.nll_se > 0 ? (s.nll_per_pixel - s.nll_expected) / s.nll_se : 0.0;
   std::string out;
   if (misfit.failing.empty()) {
-    out = fmt::format("The model fits this capture: no region fails at alpha {:g} ({} tests), and the NLL is {:+.1f} "
-                      "standard errors from what the model expects",
-                      result.alpha, s.tests, excess);
+    out = fmt::format(
+        "The model fits this capture: no region fails at alpha {:g} ({} tests), and the NLL is {:+.1f} "
+        "standard errors from what the model expects",
+        result.alpha, s.tests, excess);
   } else {
     out = fmt::format("The model fails in {} region{}, most in {}", misfit.failing.size(),
                       misfit.failing.size() == 1 ? "" : "s", where_it_fails(result));

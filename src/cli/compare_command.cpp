@@ -283,7 +283,8 @@ int run_compare(const CompareFlags& flags) {
 void setup_compare(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<CompareFlags>();
   CLI::App* sub = app.add_subcommand(
-      "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/report.html (--pixels: "
+      "compare",
+      "Compare a measured capture with a profile's model: DIR/report.json, DIR/report.html (--pixels: "
       "DIR/pixels.npz)");
   add_measured_options(sub, flags->measured);
   sub->add_option("--profile", flags->profiles,

@@ -39,10 +39,12 @@ TEST(FailingRuns, NeighbouringBinsFailingAlikeAreOneRunRankedByTheirTotalMisfit)
   EXPECT_EQ(runs[0].bins, 5u);
   EXPECT_EQ(runs[0].pixels, 5000u);
   EXPECT_DOUBLE_EQ(runs[0].misfit_nats, 500.0);
-  EXPECT_EQ(runs[0].sentence, "beams 40–44: the measured range is 4.0 mm longer than the model's (5 bins, 5000 pixels)");
+  EXPECT_EQ(runs[0].sentence,
+            "beams 40–44: the measured range is 4.0 mm longer than the model's (5 bins, 5000 pixels)");
   EXPECT_EQ(runs[1].where, "time 0.00–0.40 s");
   EXPECT_EQ(runs[2].where, "range 13–35 m");
-  EXPECT_EQ(runs[2].sentence, "range 13–35 m: the measured range is 3.0–5.0 mm longer than the model's (2 bins, 2000 pixels)");
+  EXPECT_EQ(runs[2].sentence,
+            "range 13–35 m: the measured range is 3.0–5.0 mm longer than the model's (2 bins, 2000 pixels)");
   EXPECT_EQ(runs[3].where, "beam 45");
   EXPECT_EQ(runs[4].where, "beam 47");
 }
