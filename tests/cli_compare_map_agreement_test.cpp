@@ -110,7 +110,7 @@ class MapAgreement : public ::testing::Test {
     // The frames registered to each other instead of placed by the trajectory (no --diagnose).
     const fs::path registered = dir_ / (name + "_registered");
     const CliRun m =
-        run_cli("compare --map --no-plots --capture " + (out / "capture.pcap").string() + " --metadata " +
+        run_cli("compare --map --no-plots --pixels --capture " + (out / "capture.pcap").string() + " --metadata " +
                 (out / "metadata.json").string() + " --profile " + table_.string() + " --out " + registered.string());
     ASSERT_EQ(m.exit_code, 0) << m.output;
     judged_[name].registered = same_returns(name + "_scene", name + "_registered");
@@ -147,8 +147,8 @@ class MapAgreement : public ::testing::Test {
     j.hidden = hidden;
     for (const bool map : {false, true}) {
       const fs::path out = dir_ / (name + (map ? "_map" : "_scene"));
-      const CliRun r = run_cli(std::string("compare --no-plots") + (map ? " --map --diagnose" : scene) + inputs +
-                               " --out " + out.string());
+      const CliRun r = run_cli(std::string("compare --no-plots --pixels") + (map ? " --map --diagnose" : scene) +
+                               inputs + " --out " + out.string());
       ASSERT_EQ(r.exit_code, 0) << r.output;
       (map ? j.map : j.scene) = read_json(out / "report.json");
     }

@@ -118,7 +118,7 @@ TEST(CompareMovingIndependentCapture, EveryColumnIsCastFromThePoseAtItsOwnTimest
 
   const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
                              (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
-                             " --profile os1-32-paper --no-plots";
+                             " --profile os1-32-paper --no-plots --pixels";
   const auto compare = [&](const std::string& pose, const std::string& extra, const std::string& name) {
     const fs::path out = dir / name;
     const CliRun r = lidartwin("compare" + inputs + " --pose " + pose + extra + " --out " + out.string());
@@ -230,7 +230,7 @@ TEST(CompareMovingIndependentCapture, EachWallsReflectivityReachesTheScenesMater
 
   const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
                              (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
-                             " --profile " + (dir / "profile.json").string() + " --no-plots";
+                             " --profile " + (dir / "profile.json").string() + " --no-plots --pixels";
   const CliRun r = lidartwin("compare" + inputs + " --scene " + (dir / "scene.gltf").string() + " --out " +
                              (dir / "report").string());
   ASSERT_EQ(r.code, 0) << r.err;

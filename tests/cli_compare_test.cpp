@@ -61,15 +61,32 @@ CliRun lidartwin(const std::string& arguments) {
 
 nlohmann::json read_json(const fs::path& path) { return nlohmann::json::parse(slurp(path)); }
 
+std::string first_line(const std::string& text) { return text.substr(0, text.find('\n')); }
+
+// Debian's Chromium, headless, as a user's browser (tools/test installs it).
+const std::string kBrowser =
+    "timeout 180 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1200,2400 "
+    "--virtual-time-budget=10000 --enable-logging=stderr --v=0 ";
+
+// DIR/report.html's DOM after its scripts ran; the browser's log in DIR/browser.log.
+std::string browser_dom(const fs::path& dir) {
+  const std::string page = "file://" + (dir / "report.html").string();
+  const int code = std::system(
+      (kBrowser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" + (dir / "browser.log").string())
+          .c_str());
+  EXPECT_EQ(code, 0) << slurp(dir / "browser.log");
+  return slurp(dir / "dom.html");
+}
+
 class Compare : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     // ctest runs each test as its own process, several at once: each records its own capture.
     hall_ = fs::path(testing::TempDir()) / ("compare_hall_os1-64_" + std::to_string(getpid()));
     fs::remove_all(hall_);
-    const CliRun r = lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
-                               " --frames 20 --seed 11 --out " + hall_.string());
-    ASSERT_EQ(r.code, 0) << r.err;
+    recorded_ = lidartwin("record --profile " + os1_64() + " --scene " + kHall + " --trajectory " + kHallPose +
+                          " --frames 20 --seed 11 --out " + hall_.string());
+    ASSERT_EQ(recorded_.code, 0) << recorded_.err;
   }
   // The outputs are large (pixels.npz holds every pixel): none outlives the test process.
   static void TearDownTestSuite() {
@@ -92,17 +109,32 @@ class Compare : public ::testing::Test {
     return r.err;
   }
   static inline fs::path hall_;
+  static inline CliRun recorded_;  // the hall's record, as its user saw it
   static inline std::vector<fs::path> made_;
 };
+
+// A log shows what record did (stderr is a file here, not a terminal): its progress as plain lines,
+// and one line at the end saying what it wrote. The hall's pose is constant: no column_poses.tum.
+TEST_F(Compare, RecordLogsItsProgressAndEndsWithWhatItWrote) {
+  EXPECT_NE(recorded_.err.find("record: 20/20 frames, "), std::string::npos) << recorded_.err;
+  EXPECT_EQ(recorded_.err.find('\r'), std::string::npos) << "no terminal bar in a log";
+  EXPECT_EQ(recorded_.out, "recorded 20 frames of os1-64 (1024x10) to " + hall_.string() +
+                               ": capture.pcap, metadata.json, poses.tum\n");
+  EXPECT_FALSE(fs::exists(hall_ / "column_poses.tum"));
+}
 
 TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   const fs::path dir = out("self");
   const CliRun r = lidartwin("compare --capture " + hall_.string() + " --scene " + kHall + " --profile " + os1_64() +
-                             " --out " + dir.string());
+                             " --pixels --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("no region fails"), std::string::npos) << r.out;
   const nlohmann::json report = read_json(dir / "report.json");
   EXPECT_EQ(report["schema"], "lidartwin.compare/1");
+  // The verdict in words leads the terminal's output.
+  const std::string verdict = report["verdict_sentence"];
+  EXPECT_EQ(verdict.rfind("The model fits this capture: no region fails at alpha 0.01", 0), 0u) << verdict;
+  EXPECT_EQ(first_line(r.out), verdict);
   const auto& s = report["summary"];
   EXPECT_EQ(s["frames"], 20);
   EXPECT_EQ(s["pixels"], 20 * 1024 * 64);
@@ -121,6 +153,14 @@ TEST_F(Compare, TheProfileThatMadeACaptureFitsIt) {
   pclose(pipe);
   EXPECT_EQ(std::string(line),
             std::to_string(20 * 1024 * 64) + " " + std::to_string(s["returns"].get<size_t>()) + " 33\n");
+  // Where nothing fails, the heat maps colour no cell: every cell is grey, with its pixel count.
+  const std::string html = slurp(dir / "report.html");
+  const std::string caption = "<p class=\"heat-map-caption\">";
+  size_t maps = 0;
+  for (size_t at = html.find(caption); at != std::string::npos; at = html.find(caption, at + 1), ++maps) {
+    EXPECT_EQ(html.substr(at + caption.size(), 5), "0 of ") << html.substr(at, 200);
+  }
+  EXPECT_EQ(maps, 4u);
 }
 
 // report.html as a user opens it: Debian's Chromium, headless (tools/test installs it). Every
@@ -131,16 +171,32 @@ TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
                              " --profile os1-32-paper --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   ASSERT_TRUE(fs::exists(dir / "report.html")) << r.out;
-  const std::string browser =
-      "timeout 180 chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1200,2400 "
-      "--virtual-time-budget=10000 --enable-logging=stderr --v=0 ";
-  const std::string page = "file://" + (dir / "report.html").string();
-  ASSERT_EQ(std::system((browser + "--dump-dom " + page + " >" + (dir / "dom.html").string() + " 2>" +
-                         (dir / "browser.log").string())
-                            .c_str()),
-            0)
-      << slurp(dir / "browser.log");
-  const std::string dom = slurp(dir / "dom.html");
+  // By default no pixels.npz (--pixels): what compare writes of 20 frames of 64 x 1024 stays within
+  // 20 MB for 50 (the residual histograms come from report.json).
+  EXPECT_FALSE(fs::exists(dir / "pixels.npz"));
+  uintmax_t bytes = 0;
+  for (const auto& file : fs::directory_iterator(dir)) bytes += file.file_size();
+  std::printf("  compare wrote %ju bytes for 20 frames\n", bytes);
+  EXPECT_LT(bytes, 20u * 1000 * 1000 * 20 / 50);
+  const std::string dom = browser_dom(dir);
+  // The page opens with the verdict sentence, the one report.json and the terminal lead with.
+  const std::string verdict = read_json(dir / "report.json")["verdict_sentence"];
+  EXPECT_EQ(first_line(r.out), verdict);
+  const size_t verdict_at = dom.find("<p class=\"verdict\"><b>" + verdict + "</b></p>");
+  EXPECT_NE(verdict_at, std::string::npos) << verdict << "\n" << dom.substr(0, 2000);
+  EXPECT_LT(verdict_at, dom.find("<h2>"));
+  EXPECT_NE(verdict.find("run the same compare with --diagnose"), std::string::npos) << verdict;
+  // A range image (beam x azimuth) of the misfit for each quantity that fails, beside the heat maps.
+  const nlohmann::json report = read_json(dir / "report.json");
+  std::set<std::string> failing;
+  for (const auto& f : report["failing"]) failing.insert(f["quantity"]);
+  const auto& image = report["range_image"];
+  ASSERT_EQ(image["quantities"].size(), failing.size()) << image["quantities"].dump().substr(0, 300);
+  for (const std::string& quantity : failing) {
+    ASSERT_TRUE(image["quantities"].contains(quantity)) << quantity;
+    EXPECT_EQ(image["quantities"][quantity].size(), 64u * image["azimuth_bins"].get<size_t>()) << quantity;
+    EXPECT_NE(dom.find("<h2>Range image: " + quantity + "</h2><img"), std::string::npos) << quantity;
+  }
   const auto attribute = [&](const std::string& name) {
     const size_t at = dom.find(name + "=\"");
     return at == std::string::npos ? -1 : std::stoi(dom.substr(at + name.size() + 2));
@@ -153,7 +209,8 @@ TEST_F(Compare, ReportHtmlOpensInAHeadlessBrowserWithEveryPlotDrawn) {
   EXPECT_EQ(log.find(":CONSOLE"), std::string::npos) << log;
 
   const fs::path shot = dir / "shot.png";
-  ASSERT_EQ(std::system((browser + "--screenshot=" + shot.string() + " " + page + " >/dev/null 2>&1").c_str()), 0);
+  const std::string page = "file://" + (dir / "report.html").string();
+  ASSERT_EQ(std::system((kBrowser + "--screenshot=" + shot.string() + " " + page + " >/dev/null 2>&1").c_str()), 0);
   // Colours and ink of the screenshot, read by matplotlib: a blank or broken page has neither.
   const std::string measure = "/usr/bin/python3 -c \"import matplotlib.image as m, numpy as np; i = m.imread('" +
                               shot.string() +
@@ -185,7 +242,22 @@ TEST_F(Compare, ThePapersLinearLawFailsTheDatasheetCaptureInTheRangeBandsWhereTh
   }
   EXPECT_TRUE(bands.count("[13.0,20.0]")) << report["failing"].dump(1);
   EXPECT_TRUE(bands.count("[20.0,35.0]")) << report["failing"].dump(1);
-  EXPECT_NE(r.out.find("range 13–20 m: the measured spread is 0.3"), std::string::npos) << r.out;
+  // What the terminal and report.html list: those bands merged into one run of neighbouring bins.
+  const auto& runs = report["failing_runs"];
+  const auto spread = std::find_if(runs.begin(), runs.end(), [](const nlohmann::json& run) {
+    const auto& features = run["features"];
+    return run["quantity"] == "spread" && features.size() == 1 && features.contains("range") &&
+           features["range"][0].get<double>() <= 13.0 && features["range"][1].get<double>() >= 35.0;
+  });
+  ASSERT_NE(spread, runs.end()) << runs.dump(1);
+  EXPECT_GE((*spread)["bins"].get<int>(), 2);
+  const std::string sentence = (*spread)["sentence"];
+  EXPECT_NE(sentence.find(": the measured spread is 0.3"), std::string::npos) << sentence;
+  EXPECT_NE(r.out.find("after merging neighbouring bins; largest misfit first:"), std::string::npos) << r.out;
+  // The verdict names the quantity that carries most of the misfit first, with its worst region.
+  const std::string verdict = report["verdict_sentence"];
+  EXPECT_EQ(verdict.rfind("The model fails in ", 0), 0u) << verdict;
+  EXPECT_NE(verdict.find("regions, most in the spread (worst: "), std::string::npos) << verdict;
   EXPECT_GT(report["summary"]["nll_per_pixel"].get<double>() + 0.0, 0.0);
 }
 
@@ -343,6 +415,8 @@ nlohmann::json compare_hidden_effect(const nlohmann::json& effect, const std::st
                 " --no-plots" + (diagnose ? " --diagnose" : "") + " --out " + (out_dir / "report").string());
   EXPECT_EQ(r.code, 0) << r.err;
   nlohmann::json report = read_json(out_dir / "report" / "report.json");
+  report["terminal"] = r.out;
+  report["log"] = r.err;
   if (diagnose) {
     report["held_out"] = held_out_waterfall(" --capture " + capture.string() + " --scene " + kHall, os1_64(),
                                             report["diagnosis"], 10, out_dir);
@@ -462,11 +536,36 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
   EXPECT_EQ(after["failing_regions"], 0);
   EXPECT_LT(after["bias_rms_m"].get<double>(), before["bias_rms_m"].get<double>());
   EXPECT_TRUE(report["failing"].empty()) << report["failing"][0]["sentence"];  // the report is the last profile's
+  // Each profile has its own failing regions, in report.json and as a table of its own on the page.
+  EXPECT_FALSE(before["failing_runs"].empty());
+  EXPECT_TRUE(after["failing_runs"].empty());
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tools/compare-plots.py " + held_out.string()).c_str()), 0);
+  const std::string dom = browser_dom(held_out);
+  const std::string first = before["failing_runs"][0]["sentence"];
+  const size_t base_table =
+      dom.find("<h3 class=\"profile-failing\">os1-64: " + std::to_string(before["failing_regions"].get<int>()) +
+               " failing regions</h3>");
+  ASSERT_NE(base_table, std::string::npos) << dom.substr(0, 3000);
+  EXPECT_NE(dom.find(first, base_table), std::string::npos) << first;
+  EXPECT_NE(dom.find("<h3 class=\"profile-failing\">fitted: 0 failing regions</h3><p>No region fails.</p>"),
+            std::string::npos)
+      << dom.substr(base_table, 3000);
+  // The waterfall's NLL is drawn above the best profile's (the fitted one here: 0 above).
+  EXPECT_NE(dom.find("<td>fitted</td><td>"), std::string::npos);
+  EXPECT_NE(dom.find("<td>+0.0000</td>"), std::string::npos) << dom.substr(0, 3000);
 
   const CliRun refused =
       lidartwin("fit" + measured + " --profile " + os1_64() + " --add fog --out " + (dir / "no.json").string());
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("--add fog: not an effect the fit can estimate"), std::string::npos) << refused.err;
+}
+
+// A fitted parameter as report.html's diagnosis lists it: "width = 0.3 [0.2962, 0.3036]".
+std::string fmt_param(const std::string& name, const nlohmann::json& p) {
+  char text[160];
+  std::snprintf(text, sizeof text, "%s = %.4g [%.4g, %.4g]", name.c_str(), p["value"].get<double>(),
+                p["ci95"][0].get<double>(), p["ci95"][1].get<double>());
+  return text;
 }
 
 // E5: detection from the radiometric signal (a logistic in ln S around a threshold): the weak
@@ -475,7 +574,8 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   const nlohmann::json effect = {{"name", "dropout"}, {"threshold_photons", 6.0}, {"width", 0.3}};
   // Seed 6: on seed 5 the width's interval (0.3013-0.3089) missed the true 0.3 by 2.7 standard
   // errors, a 1-in-140 draw; seeds 6 (0.2962-0.3036) and 7 (0.2948-0.3022) cover it.
-  const nlohmann::json report = compare_hidden_effect(effect, "e5", out("e5"), /*diagnose=*/true, /*seed=*/6);
+  const fs::path e5 = out("e5");
+  const nlohmann::json report = compare_hidden_effect(effect, "e5", e5, /*diagnose=*/true, /*seed=*/6);
   EXPECT_EQ(report["failing"][0]["quantity"], "detection") << report["failing"][0]["sentence"];
   const auto& diagnosis = report["diagnosis"];
   ASSERT_EQ(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);
@@ -483,6 +583,41 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   EXPECT_EQ(diagnosis["selected"][0]["catalogue"], "E5");
   expect_covered(diagnosis["selected"][0], {{"threshold_photons", 6.0}, {"width", 0.3}});
   expect_error_falls(report["held_out"]);
+
+  // The verdict and the next command, in report.json, in the terminal and on report.html: the
+  // command is the fit held_out_waterfall ran, on every frame and into the report's directory.
+  const fs::path dir = e5 / "report";
+  const std::string next = report["next_command"], verdict = report["verdict_sentence"];
+  EXPECT_EQ(next, "lidartwin fit --capture " + (e5 / "capture").string() + " --scene " + kHall + " --profile " +
+                      os1_64() + " --add dropout --out " + (dir / "fitted.json").string());
+  EXPECT_EQ(verdict.rfind("The model fails in ", 0), 0u) << verdict;
+  EXPECT_NE(verdict.find("most in detection (worst: "), std::string::npos) << verdict;
+  EXPECT_NE(verdict.find("; --diagnose says dropout (E5) is missing: run `" + next + "`."), std::string::npos)
+      << verdict;
+  const std::string terminal = report["terminal"];
+  EXPECT_EQ(first_line(terminal), verdict);
+  // In a log (stderr not a terminal): each step as plain lines, and the diagnosis candidate by candidate.
+  const std::string log = report["log"];
+  EXPECT_NE(log.find("scoring and binning: done in "), std::string::npos) << log;
+  EXPECT_NE(log.find("casting the capture's beams and predicting every pixel: 50 %\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("diagnosing: round 1: fitting dropout, "), std::string::npos) << log;
+  EXPECT_NE(log.find("diagnosing: round 2: fitting "), std::string::npos) << log;
+  EXPECT_EQ(log.find('\r'), std::string::npos) << log;
+  EXPECT_EQ(terminal.substr(terminal.rfind('\n', terminal.size() - 2) + 1),
+            "wrote " + dir.string() + "/report.json; report.html not written (--no-plots)\n");
+  EXPECT_NE(terminal.find("  next: " + next + "\n"), std::string::npos) << terminal;
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tools/compare-plots.py " + dir.string()).c_str()), 0);
+  const std::string dom = browser_dom(dir);
+  const size_t diagnosis_at = dom.find("<h2>Diagnosis</h2>");
+  ASSERT_NE(diagnosis_at, std::string::npos) << dom.substr(0, 3000);
+  EXPECT_LT(dom.find("<p class=\"verdict\"><b>" + verdict + "</b></p>"), diagnosis_at);
+  EXPECT_LT(diagnosis_at, dom.find("<h2>Where the model fails</h2>"));
+  const auto& width = diagnosis["selected"][0]["params"]["width"];
+  EXPECT_NE(dom.find(fmt_param("width", width)), std::string::npos) << dom.substr(diagnosis_at, 3000);
+  EXPECT_NE(dom.find("<td>dropout (E5)</td>"), std::string::npos) << dom.substr(diagnosis_at, 3000);
+  EXPECT_NE(dom.find("<pre class=\"next-command\">" + next + "</pre>"), std::string::npos)
+      << dom.substr(diagnosis_at, 3000);
+  EXPECT_NE(dom.find("unexplained"), std::string::npos) << dom.substr(diagnosis_at, 3000);
 }
 
 // E8: beside the hall's retroreflective panels, in their columns, returns at the panel's range and

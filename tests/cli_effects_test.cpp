@@ -54,4 +54,20 @@ TEST(CliEffects, TableShowsCatalogueIdsAndParameterLines) {
       << run.output;
 }
 
+// Two effects share E16 and two have no id (issue 24): the listing says which part each models.
+TEST(CliEffects, TableSaysWhichPartOfACatalogueEntryAnEffectModels) {
+  const auto run = run_cli("effects");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("range_limits (E16)\n    E16's near-range part"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("window (E16)\n    E16's window part"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("shot_noise\n    no catalogue id: lidar-physics.md 2.2"), std::string::npos) << run.output;
+}
+
+// points' help describes the array it writes: xyz is flat (3 floats a point), not N x 3.
+TEST(CliEffects, PointsHelpDescribesTheFlatXyzArray) {
+  const auto run = run_cli("points --help");
+  EXPECT_NE(run.output.find("xyz (flat, x y z of each point in turn: reshape(-1, 3); m)"), std::string::npos)
+      << run.output;
+}
+
 }  // namespace

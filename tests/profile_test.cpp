@@ -256,6 +256,11 @@ TEST_F(BadProfile, UnknownKeyListsTheAllowedOnes) {
   EXPECT_THAT(message, HasSubstr("max_range_m"));
 }
 
+TEST_F(BadProfile, SensorMetadataIsNamedAsSuch) {
+  const json metadata = {{"sensor_info", {{"base_pn", "000-101323-03"}}}, {"lidar_data_format", json::object()}};
+  EXPECT_THAT(error_for(metadata), HasSubstr(path() + ": this is a sensor's metadata, not a profile"));
+}
+
 TEST_F(BadProfile, UnknownKeyInsideBeamIntrinsics) {
   good_["beam_intrinsics"]["altitudes"] = json::array();
   EXPECT_THAT(error_for(good_), HasSubstr(": /beam_intrinsics/altitudes: unknown key"));

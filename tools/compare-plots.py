@@ -1,11 +1,11 @@
 #!/usr/bin/python3
-"""report.json (+ pixels.npz) of `lidartwin compare` -> report.html, one self-contained page.
+"""report.json of `lidartwin compare` -> report.html, one self-contained page.
 
-Usage: tools/compare-plots.py DIR   (DIR holds report.json and pixels.npz; writes DIR/report.html)
+Usage: tools/compare-plots.py DIR   (DIR holds report.json; writes DIR/report.html)
 
 Debian's python3-numpy and python3-matplotlib only. Every plot is a PNG embedded as base64, so
 the page opens anywhere without the files next to it. The numbers come from report.json (its
-schema: docs/compare-report.md); the residual histograms read the per-pixel z of pixels.npz.
+schema: docs/compare-report.md), pixels.npz is not needed.
 """
 import base64
 import html
@@ -34,54 +34,115 @@ def bins_of(report, names):
     return [b for b in report["bins"] if sorted(b["features"]) == sorted(names)]
 
 
+def count_label(n):
+    return "%d" % n if n < 1000 else "%.0fk" % (n / 1000) if n < 1e6 else "%.1fM" % (n / 1e6)
+
+
 def heat_map(report, x, y, quantity, title):
-    """A misfit part (nats per pixel) over two features, log colour scale."""
+    """A misfit part (nats per pixel) over two features, log colour scale, coloured only where the
+    bin's test of that quantity fails (grey: not significant at alpha), each cell with its pixels."""
     bins = bins_of(report, [x, y])
     if not bins:
         return ""
+    alpha = report["summary"]["alpha"]
     xs = sorted({tuple(b["features"][x]) for b in bins})
     ys = sorted({tuple(b["features"][y]) for b in bins})
     grid = np.full((len(ys), len(xs)), np.nan)
+    quiet = np.full((len(ys), len(xs)), np.nan)
+    counts = {}
     for b in bins:
         count = b["inliers"] if quantity in ("bias", "spread") else b["pixels"]
-        if count > 0:
-            value = b["misfit_nats"][quantity] / count
-            grid[ys.index(tuple(b["features"][y])), xs.index(tuple(b["features"][x]))] = max(value, 1e-6)
+        cell = (ys.index(tuple(b["features"][y])), xs.index(tuple(b["features"][x])))
+        counts[cell] = count
+        if count <= 0:
+            continue
+        if b["p_value"][quantity] < alpha:
+            grid[cell] = max(b["misfit_nats"][quantity] / count, 1e-6)
+        else:
+            quiet[cell] = 1.0
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    ax.imshow(quiet, origin="lower", aspect="auto", cmap=matplotlib.colors.ListedColormap(["#dddddd"]))
+    vmax = max(1e-3, np.nanmax(grid)) if np.isfinite(grid).any() else 1e-3
     image = ax.imshow(grid, origin="lower", aspect="auto", cmap="magma",
-                      norm=matplotlib.colors.LogNorm(vmin=1e-4, vmax=max(1e-3, np.nanmax(grid))))
+                      norm=matplotlib.colors.LogNorm(vmin=1e-4, vmax=vmax))
+    for (row, column), count in counts.items():
+        dark = np.isfinite(grid[row, column]) and grid[row, column] < math.sqrt(1e-4 * vmax)
+        ax.text(column, row, count_label(count), ha="center", va="center", fontsize=6,
+                color="white" if dark else "#333333")
     ax.set_xticks(range(len(xs)), ["%g–%g" % r for r in xs], rotation=45, ha="right", fontsize=7)
     ax.set_yticks(range(len(ys)), ["%g–%g" % r for r in ys], fontsize=7)
     ax.set_xlabel(x)
     ax.set_ylabel(y)
-    ax.set_title(title, fontsize=10)
+    ax.set_title("%s (grey: not significant at alpha %g; numbers: pixels)" % (title, alpha), fontsize=9)
     fig.colorbar(image, ax=ax, label="misfit, nats per pixel")
-    return png(fig)
+    failing = int(np.isfinite(grid).sum())
+    caption = ('<p class="heat-map-caption">%d of %d cells fail in the %s, coloured by their misfit; the other %d '
+               'are grey.</p>' % (failing, len(counts), quantity, len(counts) - failing))
+    return png(fig) + caption
 
 
-def residual_histograms(directory, report):
-    """Standardized range residuals per range band against the model's density (N(0, 1))."""
-    path = directory / "pixels.npz"
-    if not path.exists():
-        return "<p>pixels.npz not found: no residual histograms.</p>"
-    pixels = np.load(path)
-    z, ideal, measured, impossible = pixels["z"], pixels["ideal_range_m"], pixels["range_m"], pixels["impossible"]
-    keep = (measured > 0) & (ideal > 0) & (impossible == 0)
-    bands = [(0, 5), (5, 13), (13, 35), (35, 1e4)]
+def residual_histograms(report):
+    """Standardized range residuals per range band against the model's density (N(0, 1)), from
+    report.json's residual_histograms (z counted in bins over [-6, 6])."""
+    bands = report.get("residual_histograms")
+    if not bands:
+        return ""
     fig, axes = plt.subplots(1, len(bands), figsize=(12, 2.8), sharey=True)
     grid = np.linspace(-6, 6, 241)
     density = np.exp(-0.5 * grid ** 2) / math.sqrt(2 * math.pi)
-    for ax, (lo, hi) in zip(axes, bands):
-        band = z[keep & (ideal >= lo) & (ideal < hi)]
-        if band.size:
-            ax.hist(np.clip(band, -6, 6), bins=120, range=(-6, 6), density=True, color="#4477aa", label="measured")
+    for ax, band in zip(axes, bands):
+        counts = np.asarray(band["counts"], dtype=float)
+        edges = np.linspace(band["z"][0], band["z"][1], counts.size + 1)
+        if band["returns"]:
+            ax.stairs(counts / (band["returns"] * (edges[1] - edges[0])), edges, fill=True, color="#4477aa",
+                      label="measured")
         ax.plot(grid, density, color="#cc3311", label="model")
         ax.set_yscale("log")
         ax.set_ylim(1e-5, 1)
-        ax.set_title("range %g–%s m (%d returns)" % (lo, "∞" if hi > 1e3 else "%g" % hi, band.size), fontsize=9)
+        lo, hi = band["range_m"]
+        ax.set_title("range %g–%s m (%d returns)" % (lo, "∞" if hi > 1e3 else "%g" % hi, band["returns"]), fontsize=9)
         ax.set_xlabel("z")
     axes[0].legend(fontsize=8)
     return png(fig)
+
+
+IMAGE_TITLES = {
+    "bias": ("mean z of the returns (0 if the model is right)", "RdBu_r"),
+    "spread": ("sd of z of the returns (1 if the model is right)", "viridis"),
+    "detection": ("measured minus predicted return rate", "RdBu"),
+    "outliers": ("share of returns beyond 5 sigma", "magma"),
+}
+
+
+def range_images(report):
+    """One beam × azimuth image per failing quantity (report.json's range_image): where on the
+    sensor's own picture the misfit lies."""
+    image = report.get("range_image")
+    if not image:
+        return []
+    beams, sectors = image["beams"], image["azimuth_bins"]
+    sections = []
+    for quantity, values in image["quantities"].items():
+        grid = np.array([np.nan if v is None else v for v in values], dtype=float).reshape(beams, sectors)
+        label, cmap = IMAGE_TITLES[quantity]
+        finite = grid[np.isfinite(grid)]
+        if quantity == "spread":
+            norm = matplotlib.colors.TwoSlopeNorm(vcenter=1.0, vmin=min(0.5, finite.min(initial=1.0)),
+                                                  vmax=max(1.5, finite.max(initial=1.0)))
+        elif quantity == "outliers":
+            norm = matplotlib.colors.Normalize(vmin=0.0, vmax=max(1e-3, finite.max(initial=0.0)))
+        else:
+            limit = max(1e-3, np.abs(finite).max(initial=0.0))
+            norm = matplotlib.colors.Normalize(vmin=-limit, vmax=limit)
+        fig, ax = plt.subplots(figsize=(12, 2.2 + beams / 64))
+        shown = ax.imshow(grid, origin="upper", aspect="auto", cmap=cmap, norm=norm, interpolation="nearest",
+                          extent=(0, 360, beams - 0.5, -0.5))
+        ax.set_xlabel("azimuth (encoder angle), °")
+        ax.set_ylabel("beam")
+        ax.set_title("%s: %s, beam × azimuth (blank: no pixel meets a surface)" % (quantity, label), fontsize=9)
+        fig.colorbar(shown, ax=ax, label=quantity)
+        sections.append(("Range image: %s" % quantity, png(fig)))
+    return sections
 
 
 def reliability(report):
@@ -128,17 +189,30 @@ def pit(report):
     return png(fig)
 
 
+def failing_table(runs, limit=25):
+    rows = "".join(
+        "<tr><td>%d</td><td>%s</td><td>%s</td><td>%s</td></tr>"
+        % (i + 1, html.escape(f["quantity"]), html.escape(f["sentence"]),
+           "%.2g" % f["p_value"] if f["p_value"] > 0 else "&lt; 1e-300")
+        for i, f in enumerate(runs[:limit]))
+    return ("<table class=\"failing\"><tr><th>#</th><th>quantity</th><th>where and how</th>"
+            "<th>p (corrected)</th></tr>%s</table>" % rows) if rows else ""
+
+
 def waterfall(report):
-    """The error across the compared profiles (compare --profile A --profile B ...), same pixels."""
+    """The error across the compared profiles (compare --profile A --profile B ...), same pixels: the
+    NLL above the best profile's (so the best is 0, and no bar reads as better than the truth), and
+    each profile's own failing regions."""
     steps = report.get("waterfall")
     if not steps:
         return ""
     names = [w["profile"] for w in steps]
     excess = [(w["nll_per_pixel"] - w["nll_expected"]) / w["nll_se"] if w["nll_se"] > 0 else 0 for w in steps]
+    best = min(w["nll_per_pixel"] for w in steps)
     fig, (left, middle, right) = plt.subplots(1, 3, figsize=(12, 3))
-    left.bar(names, excess, color="#4477aa")
+    left.bar(names, [w["nll_per_pixel"] - best for w in steps], color="#4477aa")
     left.axhline(0, color="gray", lw=1)
-    left.set_ylabel("NLL excess, standard errors")
+    left.set_ylabel("NLL above the best profile,\nnats per pixel")
     middle.bar(names, [1000 * w["bias_rms_m"] for w in steps], color="#ee7733")
     middle.set_ylabel("bias RMS over bins, mm")
     right.bar(names, [w["failing_regions"] for w in steps], color="#cc3311")
@@ -146,27 +220,67 @@ def waterfall(report):
     for ax in (left, middle, right):
         ax.tick_params(axis="x", rotation=30, labelsize=8)
     fig.suptitle("the error as the profile improves", fontsize=10)
-    fig.subplots_adjust(wspace=0.4)
-    rows = "".join("<tr><td>%s</td><td>%.4f</td><td>%+.1f</td><td>%.1f mm</td><td>%.2f</td><td>%.4f</td><td>%d</td></tr>"
-                   % (html.escape(w["profile"]), w["nll_per_pixel"], e, 1000 * w["bias_rms_m"],
-                      w["spread_ratio_median"], w["detection_log_loss"], w["failing_regions"])
+    fig.subplots_adjust(wspace=0.45)
+    rows = "".join("<tr><td>%s</td><td>%.4f</td><td>%+.4f</td><td>%+.1f</td><td>%.1f mm</td><td>%.2f</td>"
+                   "<td>%.4f</td><td>%d</td></tr>"
+                   % (html.escape(w["profile"]), w["nll_per_pixel"], w["nll_per_pixel"] - best, e,
+                      1000 * w["bias_rms_m"], w["spread_ratio_median"], w["detection_log_loss"], w["failing_regions"])
                    for w, e in zip(steps, excess))
-    return ("<table><tr><th>profile</th><th>NLL/pixel</th><th>excess (SE)</th><th>bias RMS</th>"
-            "<th>median spread ratio</th><th>detection log-loss</th><th>failing</th></tr>%s</table>%s"
-            % (rows, png(fig)))
+    tables = "".join(
+        '<h3 class="profile-failing">%s: %d failing regions</h3>%s'
+        % (html.escape(w["profile"]), w["failing_regions"],
+           failing_table(w.get("failing_runs", []), 10) or "<p>No region fails.</p>")
+        for w in steps)
+    return ("<table><tr><th>profile</th><th>NLL/pixel</th><th>above the best</th><th>excess over its own "
+            "expectation (SE)</th><th>bias RMS</th><th>median spread ratio</th><th>detection log-loss</th>"
+            "<th>failing</th></tr>%s</table>%s%s" % (rows, png(fig), tables))
 
 
-def page(directory, report):
+def number(value):
+    return "%.4g" % value
+
+
+def diagnosis_section(report):
+    """What --diagnose found, as the terminal prints it: the effects it selected with their values and
+    95 % intervals, replacements and refits, what stays unexplained, and the command that applies it."""
+    d = report.get("diagnosis")
+    if d is None:
+        return ""
+    parts = ["<p>verdict of the search: <b>%s</b> (fits on %d pixels)</p>" % (html.escape(d["verdict"]), d["pixels"])]
+    rows = "".join(
+        "<tr><td>%s (%s)</td><td>%+.1f</td><td>%s</td></tr>"
+        % (html.escape(c["effect"]), html.escape(c["catalogue"]), c["delta_bic"],
+           "<br>".join("%s = %s [%s, %s]" % (html.escape(name), number(p["value"]), number(p["ci95"][0]),
+                                               number(p["ci95"][1])) for name, p in c["params"].items()))
+        for c in d["selected"])
+    if rows:
+        parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC</th>"
+                     "<th>fitted value [95 %% interval]</th></tr>%s</table>" % rows)
+    else:
+        parts.append("<p>No library effect is selected.</p>")
+    items = ["replace: " + r["sentence"] for r in d["replace"]]
+    for m in d["parameter_misfit"]:
+        changes = ", ".join("%s %s → %s" % (name, number(m["old"].get(name, 0.0)), number(p["value"]))
+                            for name, p in m["params"].items())
+        items.append("refitted %s (%s channel, delta BIC %+.1f): %s" % (m["effect"], m["channel"], m["delta_bic"], changes))
+    items += [s["sentence"] for s in d["shared"]] + [n["sentence"] for n in d["not_selected"]]
+    items += ["unexplained: " + u["sentence"] for u in d["unexplained"]]
+    if not d["unexplained"]:
+        items.append("Nothing stays unexplained: with the selected effects no quantity fails any more.")
+    parts.append("<ul>%s</ul>" % "".join("<li>%s</li>" % html.escape(i) for i in items))
+    if report.get("next_command"):
+        parts.append("<p>To apply it:</p><pre class=\"next-command\">%s</pre>" % html.escape(report["next_command"]))
+    return "".join(parts)
+
+
+def page(report):
     s = report["summary"]
     inputs = report.get("inputs", {})
     excess = (s["nll_per_pixel"] - s["nll_expected"]) / s["nll_se"] if s["nll_se"] > 0 else 0.0
-    rows = "".join(
-        "<tr><td>%d</td><td>%s</td><td>%s</td><td>%.2g</td></tr>"
-        % (i + 1, html.escape(f["quantity"]), html.escape(f["sentence"]), f["p_value"])
-        for i, f in enumerate(report["failing"][:25]))
-    failing = ("<table><tr><th>#</th><th>quantity</th><th>where and how</th><th>p (corrected)</th></tr>%s</table>"
-               % rows) if rows else "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"])
+    failing = (failing_table(report.get("failing_runs", report["failing"]))
+               or "<p><b>No region fails</b> at alpha %g (%d tests).</p>" % (s["alpha"], s["tests"]))
     sections = [
+        ("Diagnosis", diagnosis_section(report)),
         ("The error across profiles", waterfall(report)),
         ("Where the model fails", failing),
         ("Spread misfit: range × incidence", heat_map(report, "range", "incidence", "spread", "spread part of the misfit")),
@@ -174,7 +288,8 @@ def page(directory, report):
         ("Spread misfit: range × reflectivity",
          heat_map(report, "range", "reflectivity", "spread", "spread part of the misfit")),
         ("Bias misfit: range × reflectivity", heat_map(report, "range", "reflectivity", "bias", "bias part of the misfit")),
-        ("Range residuals per range band", residual_histograms(directory, report)),
+    ] + range_images(report) + [
+        ("Range residuals per range band", residual_histograms(report)),
         ("Detection", reliability(report)),
         ("PIT", pit(report)),
         ("Per beam", along(report, "beam", "beam")),
@@ -185,8 +300,10 @@ def page(directory, report):
 <html lang="en"><head><meta charset="utf-8"><title>lidartwin compare: %s</title>
 <style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}
 table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;text-align:left}
-.summary td:first-child{font-weight:bold}</style></head><body>
+.summary td:first-child{font-weight:bold}.verdict{font-size:17px}
+pre{background:#f4f4f4;padding:6px;white-space:pre-wrap}</style></head><body>
 <h1>lidartwin compare</h1>
+<p class="verdict"><b>%s</b></p>
 <p>%s compared with profile <b>%s</b></p>
 <table class="summary">
 <tr><td>frames, pixels, returns</td><td>%d, %d, %d</td></tr>
@@ -203,7 +320,7 @@ window.addEventListener("load", () => {
   document.body.dataset.plotsRendered = images.filter((i) => i.complete && i.naturalWidth > 0).length;
 });
 </script></body></html>
-""" % (html.escape(str(inputs.get("capture", ""))), html.escape(str(inputs.get("capture", "the capture"))),
+""" % (html.escape(str(inputs.get("capture", ""))), html.escape(report.get("verdict_sentence", "")), html.escape(str(inputs.get("capture", "the capture"))),
        html.escape(str(inputs.get("profile", "?"))), s["frames"], s["pixels"], s["returns"], s["nll_per_pixel"],
        s["nll_expected"], s["nll_se"], excess, 100 * s["detection"]["measured"], 100 * s["detection"]["predicted"],
        s["z"]["mean"], s["z"]["std"], len(report["failing"]), s["alpha"], s["tests"], body)
@@ -214,7 +331,7 @@ def main():
         sys.exit(__doc__)
     directory = Path(sys.argv[1])
     report = json.loads((directory / "report.json").read_text())
-    (directory / "report.html").write_text(page(directory, report), encoding="utf-8")
+    (directory / "report.html").write_text(page(report), encoding="utf-8")
 
 
 if __name__ == "__main__":

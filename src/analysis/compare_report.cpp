@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "lidartwin/analysis/npz_writer.h"
 
@@ -38,9 +39,11 @@ nlohmann::json bin_json(const BinMisfit& b) {
 
 }  // namespace
 
-WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, const Misfit& misfit) {
+WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, const Misfit& misfit,
+                             const std::vector<std::string>& material_names) {
   WaterfallStep w;
   w.profile = profile;
+  w.failing_runs = failing_runs(misfit, material_names);
   w.nll_per_pixel = misfit.summary.nll_per_pixel;
   w.nll_expected = misfit.summary.nll_expected;
   w.nll_se = misfit.summary.nll_se;
@@ -70,6 +73,112 @@ WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, co
   return w;
 }
 
+std::vector<ResidualHistogram> residual_histograms(const PixelTable& t, const PixelScores& s) {
+  std::vector<ResidualHistogram> bands;
+  for (const auto& [lo, hi] : {std::pair{0.0, 5.0}, {5.0, 13.0}, {13.0, 35.0}, {35.0, 1e4}}) {
+    bands.push_back({lo, hi, 0, std::vector<uint32_t>(ResidualHistogram::kBins, 0)});
+  }
+  constexpr double kHalfWidth = 6.0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double ideal = t.ideal_range_m[i];
+    if (t.range_m[i] <= 0.0f || ideal <= 0.0 || s.impossible[i]) continue;
+    for (ResidualHistogram& band : bands) {
+      if (ideal < band.lo_m || ideal >= band.hi_m) continue;
+      const double u = (static_cast<double>(s.z[i]) + kHalfWidth) / (2 * kHalfWidth);
+      const int k = std::clamp(static_cast<int>(u * ResidualHistogram::kBins), 0, ResidualHistogram::kBins - 1);
+      ++band.counts[static_cast<size_t>(k)];
+      ++band.returns;
+    }
+  }
+  return bands;
+}
+
+RangeImage range_image(const PixelTable& t, const PixelScores& s, const Misfit& misfit) {
+  RangeImage image;
+  for (const uint16_t beam : t.beam) image.beams = std::max(image.beams, beam + 1);
+  const size_t cells = static_cast<size_t>(image.beams) * RangeImage::kAzimuthBins;
+  struct Cell {
+    double pixels = 0, returns = 0, expected = 0, inliers = 0, z = 0, z2 = 0, outliers = 0;
+  };
+  std::vector<Cell> acc(cells);
+  for (size_t i = 0; i < t.size(); ++i) {
+    if (t.ideal_range_m[i] <= 0.0f) continue;
+    const double turn = std::fmod(static_cast<double>(t.azimuth_deg[i]) / 360.0 + 1.0, 1.0);
+    const int sector = std::min(static_cast<int>(turn * RangeImage::kAzimuthBins), RangeImage::kAzimuthBins - 1);
+    Cell& c = acc[static_cast<size_t>(t.beam[i]) * RangeImage::kAzimuthBins + static_cast<size_t>(sector)];
+    c.pixels += 1;
+    c.expected += static_cast<double>(t.p_detect[i]);
+    if (t.range_m[i] <= 0.0f || s.impossible[i]) continue;
+    c.returns += 1;
+    const double z = s.z[i];
+    if (std::abs(z) > 5.0) {
+      c.outliers += 1;
+      continue;
+    }
+    c.inliers += 1;
+    c.z += z;
+    c.z2 += z * z;
+  }
+  image.pixels.resize(cells);
+  for (size_t k = 0; k < cells; ++k) image.pixels[k] = static_cast<uint32_t>(acc[k].pixels);
+  const auto fails = [&](const std::string& q) {
+    return std::any_of(misfit.failing.begin(), misfit.failing.end(), [&](const auto& f) { return f.quantity == q; });
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const auto add = [&](const char* quantity, auto value) {
+    if (!fails(quantity)) return;
+    std::vector<float> values(cells);
+    for (size_t k = 0; k < cells; ++k) values[k] = static_cast<float>(value(acc[k]));
+    image.quantities.emplace_back(quantity, std::move(values));
+  };
+  add("bias", [&](const Cell& c) { return c.inliers > 0 ? c.z / c.inliers : nan; });
+  add("spread", [&](const Cell& c) {
+    if (c.inliers < 2) return nan;
+    const double mean = c.z / c.inliers;
+    return std::sqrt(std::max(c.z2 / c.inliers - mean * mean, 0.0));
+  });
+  add("detection", [&](const Cell& c) { return c.pixels > 0 ? (c.returns - c.expected) / c.pixels : nan; });
+  add("outliers", [&](const Cell& c) { return c.returns > 0 ? c.outliers / c.returns : nan; });
+  return image;
+}
+
+namespace {
+
+nlohmann::json image_json(const RangeImage& image) {
+  nlohmann::json quantities = nlohmann::json::object();
+  for (const auto& [name, values] : image.quantities) {
+    nlohmann::json rounded = nlohmann::json::array();
+    for (const float v : values) {  // 4 digits are all a picture shows; NaN is written as null
+      rounded.push_back(std::isfinite(v) ? nlohmann::json(std::round(static_cast<double>(v) * 1e4) / 1e4)
+                                         : nlohmann::json());
+    }
+    quantities[name] = std::move(rounded);
+  }
+  return {
+      {"beams", image.beams},
+      {"azimuth_bins", RangeImage::kAzimuthBins},
+      {"layout", "beam-major: index beam * azimuth_bins + sector; sector k covers [k, k + 1) * 360 / azimuth_bins deg"},
+      {"pixels", image.pixels},
+      {"quantities", quantities}};
+}
+
+nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const FailingRun& run : runs) {
+    out.push_back({{"quantity", run.quantity},
+                   {"features", region_json(run.region)},
+                   {"bins", run.bins},
+                   {"pixels", run.pixels},
+                   {"misfit_nats", run.misfit_nats},
+                   {"p_value", run.p_value},
+                   {"where", run.where},
+                   {"sentence", run.sentence}});
+  }
+  return out;
+}
+
+}  // namespace
+
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
   nlohmann::json out = nlohmann::json::array();
   for (const WaterfallStep& w : steps) {
@@ -80,7 +189,8 @@ nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
                    {"bias_rms_m", w.bias_rms_m},
                    {"spread_ratio_median", w.spread_ratio_median},
                    {"detection_log_loss", w.detection_log_loss},
-                   {"failing_regions", w.failing}});
+                   {"failing_regions", w.failing},
+                   {"failing_runs", runs_json(w.failing_runs)}});
   }
   return out;
 }
@@ -142,6 +252,8 @@ nlohmann::json report_json(const CompareResult& result) {
   const MisfitSummary& s = misfit.summary;
   nlohmann::json report;
   report["schema"] = kCompareReportSchema;
+  report["verdict_sentence"] = verdict_sentence(result);
+  if (!result.next_command.empty()) report["next_command"] = result.next_command;
   report["inputs"] = inputs_json(result.inputs);
   report["summary"] = {{"frames", s.frames},
                        {"pixels", s.pixels},
@@ -172,11 +284,21 @@ nlohmann::json report_json(const CompareResult& result) {
                        {"sentence", f.sentence}});
   }
   report["failing"] = std::move(failing);
+  report["failing_runs"] = runs_json(failing_runs(misfit, result.inputs.material_names));
   nlohmann::json bins = nlohmann::json::array();
   for (const BinMisfit& b : misfit.bins) bins.push_back(bin_json(b));
   report["bins"] = std::move(bins);
   if (result.waterfall.size() > 1) report["waterfall"] = waterfall_json(result.waterfall);
   if (result.diagnosis) report["diagnosis"] = diagnosis_json(*result.diagnosis);
+  if (result.image) report["range_image"] = image_json(*result.image);
+  if (!result.residuals.empty()) {
+    nlohmann::json residuals = nlohmann::json::array();
+    for (const ResidualHistogram& h : result.residuals) {
+      residuals.push_back(
+          {{"range_m", {h.lo_m, h.hi_m}}, {"returns", h.returns}, {"z", {-6.0, 6.0}}, {"counts", h.counts}});
+    }
+    report["residual_histograms"] = std::move(residuals);
+  }
   return report;
 }
 

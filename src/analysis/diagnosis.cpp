@@ -34,7 +34,11 @@ struct Search {
   analysis_detail::FitRows rows;
   EffectChain chain;
   double nll = 0.0;
+  int round = 0;  // of the search for missing effects
   double log_n() const { return std::log(static_cast<double>(rows.size())); }
+  void say(const std::string& what) const {
+    if (options.progress) options.progress(what);
+  }
 };
 
 // What a round kept: an added candidate, or a law of another form in place of the noise law
@@ -59,6 +63,7 @@ struct Kept {
 // whether or not the range misfits.
 void refit_radiometry_first(Search& s, Diagnosis& d) {
   if (!s.options.refit_profile) return;
+  s.say("refitting the capture's radiometry");
   if (std::optional<ParameterMisfit> m = refit_radiometry(s.table, s.chain, s.options)) {
     s.chain = with_refit(s.chain, *m);
     d.parameter_misfit.push_back(std::move(*m));
@@ -77,6 +82,7 @@ void refit_own_effects(Search& s, Diagnosis& d) {
   }
   const double alpha = s.options.alpha / static_cast<double>(std::max<size_t>(own.size(), 1));
   for (const auto& [index, spec] : own) {
+    s.say(fmt::format("refitting the profile's {}", spec.effect));
     std::optional<ParameterMisfit> m =
         analysis_detail::refit_in_place(s.table, s.rows, s.chain, s.nll, index, spec, s.options, alpha);
     if (m) d.parameter_misfit.push_back(std::move(*m));
@@ -86,7 +92,10 @@ void refit_own_effects(Search& s, Diagnosis& d) {
 // Every candidate of the pool fitted given the chain, best first.
 std::vector<Candidate> fit_candidates(const Search& s, const std::vector<const CandidateSpec*>& pool) {
   std::vector<Candidate> fits;
-  for (const CandidateSpec* spec : pool) fits.push_back(fit(s.table, s.rows, Placement{s.chain, {}}, s.nll, *spec));
+  for (const CandidateSpec* spec : pool) {
+    s.say(fmt::format("round {}: fitting {}, {} of {}", s.round, spec->effect, fits.size() + 1, pool.size()));
+    fits.push_back(fit(s.table, s.rows, Placement{s.chain, {}}, s.nll, *spec));
+  }
   std::sort(fits.begin(), fits.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic > b.delta_bic; });
   return fits;
 }
@@ -112,6 +121,7 @@ std::optional<Step> best_replacement(const Search& s, const Diagnosis& d) {
   for (CandidateSpec& form :
        analysis_detail::noise_law_forms(s.chain, *index, s.table, s.rows, s.options.datasheet_noise)) {
     Step step{{}, std::move(form), index, removed};
+    s.say(fmt::format("round {}: fitting {} in place of the noise law", s.round, step.spec.effect));
     step.candidate = fit(s.table, s.rows, Placement{s.chain, index, true}, s.nll, step.spec);
     score_replacement(step.candidate, step, s.log_n());
     if (!best || step.candidate.delta_bic > best->candidate.delta_bic) best = std::move(step);
@@ -220,6 +230,7 @@ std::vector<Step> search_steps(Search& s, Diagnosis& d) {
   std::vector<Step> steps;
   for (bool first = true; static_cast<int>(d.selected.size()) < s.options.max_effects && (!pool.empty() || may_replace);
        first = false) {
+    ++s.round;
     const std::vector<Candidate> fits = fit_candidates(s, pool);
     if (first) d.ranked = fits;
     if (last) note_shared(s, d, *last, fits, corrected_alpha);
@@ -346,21 +357,24 @@ std::string replacement_sentence(const Replacement& r) {
 Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
                    const DiagnoseOptions& options) {
   Diagnosis d;
-  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0};
+  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0, 0};
   d.pixels = s.rows.size();
   refit_radiometry_first(s, d);
   s.nll = analysis_detail::total_nll(table, s.rows, s.chain);
   refit_own_effects(s, d);
   d.refitted = s.chain;
   const std::vector<Step> steps = search_steps(s, d);
+  if (!steps.empty()) s.say("refitting the kept effects jointly");
   refit_steps_jointly(s, d, steps);
   for (Replacement& r : d.replace) r.sentence = replacement_sentence(r);
   d.fitted = s.chain;
+  s.say("what the fitted chain leaves unexplained");
   explain_remaining(s, d);
   // A misfit no library effect explains is a missing effect too.
   d.verdict = !d.selected.empty() || !d.unexplained.empty() ? "missing effect"
               : !d.replace.empty()                          ? "wrong effect form"
                                                             : "no missing effect";
+  s.say("what each candidate repairs");
   note_repairs(s, d);
   return d;
 }

@@ -1,12 +1,14 @@
 // `lidartwin compare`: a measured capture against the model of a profile, pixel by pixel, and a
-// report of where the model fails (DIR/report.json, DIR/pixels.npz, DIR/report.html).
+// report of where the model fails (DIR/report.json, DIR/report.html; with --pixels DIR/pixels.npz).
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/format.h>
@@ -35,6 +37,7 @@ struct CompareFlags {
   uint64_t seed = 0;
   size_t show = 10;
   bool plots = true;
+  bool pixels = false;
   bool diagnose = false;
   bool keep_profile = false;
   bool refit_noise = false;
@@ -81,7 +84,8 @@ void score_profiles(const CompareFlags& flags, const Measured& measured, const P
     }
     scored.scores = score_pixels(*scored.table, flags.seed);
     result.misfit = find_misfit(*scored.table, scored.scores, measured.capture.frames.size(), options);
-    result.waterfall.push_back(waterfall_step(p.profiles[k].name, *scored.table, result.misfit));
+    result.waterfall.push_back(
+        waterfall_step(p.profiles[k].name, *scored.table, result.misfit, measured.inputs.material_names));
     steps.done();
   }
 }
@@ -96,21 +100,64 @@ Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, cons
   options.datasheet_noise = datasheet_range_noise(profile.prod_line);
   WorkerPool pool(flags.measured.threads);
   options.pool = &pool;
+  options.progress = [&steps](const std::string& what) { steps.note("diagnosing: " + what); };
   Diagnosis diagnosis = lidartwin::diagnose(table, chain, misfit, options);
   steps.done();
   return diagnosis;
 }
 
-// DIR/report.json, DIR/pixels.npz and, for registered frames, DIR/registered_poses.tum.
+// DIR/report.json, with --pixels DIR/pixels.npz (117 bytes a pixel: 380 MB for 50 frames of
+// 64 x 1024) and, for registered frames, DIR/registered_poses.tum.
 void write_outputs(const CompareFlags& flags, const CompareResult& result, const Scored& scored, Steps& steps) {
   fs::create_directories(flags.out);
+  fs::remove(fs::path(flags.out) / "pixels.npz");  // an earlier run's, which this report does not describe
   write_json(fs::path(flags.out) / "report.json", report_json(result));
-  steps.start("writing pixels.npz");
-  write_pixels_npz(fs::path(flags.out) / "pixels.npz", *scored.table, scored.scores);
-  steps.done();
+  if (flags.pixels) {
+    steps.start("writing pixels.npz");
+    write_pixels_npz(fs::path(flags.out) / "pixels.npz", *scored.table, scored.scores);
+    steps.done();
+  }
   if (result.inputs.registration) {
     result.inputs.registration->trajectory.save_tum(fs::path(flags.out) / "registered_poses.tum");
   }
+}
+
+// An argument as a POSIX shell reads it back: quoted where it holds anything but safe characters.
+std::string shell_word(const std::string& word) {
+  const bool safe = !word.empty() && std::all_of(word.begin(), word.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || std::string_view("/._-+=:,@%").find(c) != std::string::npos;
+  });
+  if (safe) return word;
+  std::string out = "'";
+  for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// The `fit` that applies what the diagnosis found to the compared profile, on the same capture:
+// its replacements (--replace) and selected effects (--add), fitted again there. Empty when the
+// diagnosis neither adds nor replaces anything.
+std::string next_fit_command(const CompareFlags& flags, const Diagnosis& diagnosis) {
+  if (diagnosis.selected.empty() && diagnosis.replace.empty()) return "";
+  const MeasuredFlags& m = flags.measured;
+  std::string command = "lidartwin fit --capture " + shell_word(m.capture);
+  const auto option = [&](const char* name, const std::string& value) {
+    if (!value.empty()) command += fmt::format(" {} {}", name, shell_word(value));
+  };
+  option("--metadata", m.metadata);
+  option("--scene", m.scene);
+  option("--pose", m.pose);
+  if (m.time_offset_s != 0.0) option("--time-offset", fmt::format("{}", m.time_offset_s));
+  if (m.frames > 0) option("--frames", std::to_string(m.frames));
+  if (m.skip_frames > 0) option("--skip-frames", std::to_string(m.skip_frames));
+  if (m.static_mode) command += " --static";
+  if (m.map_mode) command += " --map";
+  if (m.refine_pose) command += " --refine-pose";
+  option("--profile", flags.profiles.back());
+  for (const Replacement& r : diagnosis.replace) option("--replace", r.effect + "=" + r.with.effect);
+  for (const Candidate& c : diagnosis.selected) option("--add", c.effect);
+  if (flags.refit_noise) command += " --refit-noise";
+  option("--out", (fs::path(flags.out) / "fitted.json").string());
+  return command;
 }
 
 void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
@@ -140,7 +187,7 @@ void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
   }
 }
 
-void print_misfit(const CompareFlags& flags, const Misfit& misfit) {
+void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::vector<std::string>& material_names) {
   const MisfitSummary& s = misfit.summary;
   std::printf("NLL per pixel %.4f, expected %.4f +- %.4f if the model were true (%+.1f standard errors)\n",
               s.nll_per_pixel, s.nll_expected, s.nll_se,
@@ -151,14 +198,17 @@ void print_misfit(const CompareFlags& flags, const Misfit& misfit) {
     std::printf("no region fails at alpha %g (%zu tests, Bonferroni-corrected)\n", flags.alpha, s.tests);
     return;
   }
-  std::printf("%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected); worst first:\n",
-              misfit.failing.size(), flags.alpha, s.tests);
-  for (size_t i = 0; i < std::min(flags.show, misfit.failing.size()); ++i) {
-    std::printf("  %2zu. [%s] %s\n", i + 1, misfit.failing[i].quantity.c_str(), misfit.failing[i].sentence.c_str());
+  const std::vector<FailingRun> runs = failing_runs(misfit, material_names);
+  std::printf(
+      "%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected), %zu after merging neighbouring bins; "
+      "largest misfit first:\n",
+      misfit.failing.size(), flags.alpha, s.tests, runs.size());
+  for (size_t i = 0; i < std::min(flags.show, runs.size()); ++i) {
+    std::printf("  %2zu. [%s] %s\n", i + 1, runs[i].quantity.c_str(), runs[i].sentence.c_str());
   }
 }
 
-void print_diagnosis(const Diagnosis& diagnosis) {
+void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command) {
   std::printf("diagnosis on %zu pixels: %s\n", diagnosis.pixels, diagnosis.verdict.c_str());
   for (const ParameterMisfit& m : diagnosis.parameter_misfit) {
     std::string changes;
@@ -182,6 +232,7 @@ void print_diagnosis(const Diagnosis& diagnosis) {
   for (const SharedMisfit& shared : diagnosis.shared) std::printf("  %s\n", shared.sentence.c_str());
   for (const NotSelected& n : diagnosis.not_selected) std::printf("  %s\n", n.sentence.c_str());
   for (const UnexplainedMisfit& u : diagnosis.unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
+  if (!next_command.empty()) std::printf("  next: %s\n", next_command.c_str());
 }
 
 void print_waterfall(const std::vector<WaterfallStep>& waterfall) {
@@ -205,17 +256,21 @@ int run_compare(const CompareFlags& flags) {
   result.alpha = flags.alpha;
   Scored scored;
   score_profiles(flags, measured, p, result, scored, steps);
+  result.residuals = residual_histograms(*scored.table, scored.scores);
+  if (!result.misfit.failing.empty()) result.image = range_image(*scored.table, scored.scores, result.misfit);
   if (flags.diagnose) {
     result.diagnosis = diagnose_last(flags, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
+    result.next_command = next_fit_command(flags, *result.diagnosis);
   }
   write_outputs(flags, result, scored, steps);
 
   const MisfitSummary& s = result.misfit.summary;
+  std::printf("%s\n", verdict_sentence(result).c_str());
   std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
               result.inputs.capture.c_str(), result.inputs.profile.c_str());
   print_inputs(flags, result.inputs);
-  print_misfit(flags, result.misfit);
-  if (result.diagnosis) print_diagnosis(*result.diagnosis);
+  print_misfit(flags, result.misfit, result.inputs.material_names);
+  if (result.diagnosis) print_diagnosis(*result.diagnosis, result.next_command);
   if (result.waterfall.size() > 1) print_waterfall(result.waterfall);
   std::string plots = "report.html not written (--no-plots)";
   if (flags.plots) {
@@ -223,14 +278,17 @@ int run_compare(const CompareFlags& flags) {
     plots = run_plot_script("compare-plots.py", flags.out, "report.html");
     steps.done();
   }
-  std::printf("wrote %s/report.json and %s/pixels.npz; %s\n", flags.out.c_str(), flags.out.c_str(), plots.c_str());
+  std::printf("wrote %s/report.json%s; %s\n", flags.out.c_str(),
+              flags.pixels ? (" and " + flags.out + "/pixels.npz").c_str() : "", plots.c_str());
   return 0;
 }
 
 void setup_compare(CLI::App& app, std::function<int()>& run) {
   auto flags = std::make_shared<CompareFlags>();
   CLI::App* sub = app.add_subcommand(
-      "compare", "Compare a measured capture with a profile's model: DIR/report.json, DIR/pixels.npz");
+      "compare",
+      "Compare a measured capture with a profile's model: DIR/report.json, DIR/report.html (--pixels: "
+      "DIR/pixels.npz)");
   add_measured_options(sub, flags->measured);
   sub->add_option("--profile", flags->profiles,
                   "profile whose effect chain is compared (name or .json); several: a waterfall of the error "
@@ -242,6 +300,9 @@ void setup_compare(CLI::App& app, std::function<int()>& run) {
       ->capture_default_str();
   sub->add_option("--seed", flags->seed, "seed of the PIT's tie-breaking draws")->capture_default_str();
   sub->add_flag("!--no-plots", flags->plots, "skip report.html (tools/compare-plots.py)");
+  sub->add_flag("--pixels", flags->pixels,
+                "also write DIR/pixels.npz, every pixel's measurement, prediction and score for numpy (117 bytes a "
+                "pixel)");
   sub->add_flag("--diagnose", flags->diagnose,
                 "fit each library effect the profile lacks (maximum likelihood) and rank them: which is missing");
   sub->add_flag("--keep-profile", flags->keep_profile,

@@ -47,11 +47,22 @@ nlohmann::json describe_effect(const std::string& name) {
   return entry;
 }
 
+// Which part of a catalogue entry an effect models, where two share one or one has none
+// (lidar-physics.md E16 is "Window, near-range and blockage artifacts"; section 2.2 the channels).
+const char* catalogue_note(const std::string& name) {
+  if (name == "range_limits") return "E16's near-range part (and E5's range part): returns beyond the range window";
+  if (name == "window") return "E16's window part: dirt, water or blockage on the window";
+  if (name == "shot_noise") return "no catalogue id: lidar-physics.md 2.2, photon noise of SIGNAL and NEAR_IR";
+  if (name == "radiometry") return "no catalogue id: lidar-physics.md 2.2, the expected SIGNAL and NEAR_IR";
+  return nullptr;
+}
+
 void print_table(const nlohmann::json& effects) {
   for (const nlohmann::json& e : effects) {
     const std::string catalogue = e["catalogue"].get<std::string>();
     std::printf("%s%s\n", e["name"].get<std::string>().c_str(),
                 catalogue.empty() ? "" : fmt::format(" ({})", catalogue).c_str());
+    if (const char* note = catalogue_note(e["name"].get<std::string>())) std::printf("    %s\n", note);
     if (e.contains("requires")) {
       std::printf("    needs values: %s\n", e["requires"].get<std::string>().c_str());
       continue;

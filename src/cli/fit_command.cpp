@@ -177,6 +177,7 @@ int run_fit(const FitFlags& flags) {
   options.datasheet_noise = datasheet_range_noise(profile.prod_line);
   WorkerPool pool(flags.measured.threads);
   options.pool = &pool;
+  options.progress = [&steps](const std::string& what) { steps.note("fitting: " + what); };
   steps.start("fitting");
   const Fitted fitted =
       flags.automatic ? fit_automatically(measured, chain, options) : fit_as_asked(flags, measured, chain, options);

@@ -78,6 +78,7 @@ std::unique_ptr<PoseSource> load_measured_poses(const fs::path& path) {
 struct SceneComparison {
   PixelTable table;
   std::optional<PoseRefinement> refinement;
+  std::vector<std::string> material_names;  // by Embree geometry id, the table's material
 };
 SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const MeasuredCapture& capture,
                             const EffectChain& chain, const SensorProfile& profile, Steps& steps) {
@@ -86,6 +87,7 @@ SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const 
   const Scene scene = Scene::load(flags.scene);
   steps.done();
   SceneComparison out;
+  for (unsigned g = 0; g < scene.geometry_count(); ++g) out.material_names.push_back(scene.material(g).name);
   std::unique_ptr<PoseSource> corrected;
   if (flags.refine_pose) {
     steps.start("registering the measured points to the scene");
@@ -197,23 +199,36 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
 Steps::Steps() : tty_(isatty(STDERR_FILENO) != 0) {}
 
 void Steps::start(const char* what) {
+  what_ = what;
+  printed_quarter_ = 0;
   if (tty_) std::fprintf(stderr, "\r%-60s", what);
+  else std::fprintf(stderr, "%s ...\n", what);
   started_ = std::chrono::steady_clock::now();
 }
 
 void Steps::progress(const char* what, double fraction) const {
-  if (!tty_) return;
+  if (!tty_) {
+    const int quarter = static_cast<int>(fraction * 4);
+    if (quarter <= printed_quarter_ || quarter >= 4) return;
+    printed_quarter_ = quarter;
+    std::fprintf(stderr, "%s: %d %%\n", what, 25 * quarter);
+    return;
+  }
   constexpr int kWidth = 20;
   const int filled = static_cast<int>(fraction * kWidth);
   std::fprintf(stderr, "\r%-60s [%s%s] %3.0f %%", what, std::string(static_cast<size_t>(filled), '=').c_str(),
                std::string(static_cast<size_t>(kWidth - filled), ' ').c_str(), 100.0 * fraction);
 }
 
+void Steps::note(const std::string& what) const {
+  if (tty_) std::fprintf(stderr, "\r%-60s", what.c_str());
+  else std::fprintf(stderr, "%s\n", what.c_str());
+}
+
 void Steps::done() const {
-  if (tty_) {
-    std::fprintf(stderr, " %.1f s\n",
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count());
-  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  if (tty_) std::fprintf(stderr, " %.1f s\n", seconds);
+  else std::fprintf(stderr, "%s: done in %.1f s\n", what_.c_str(), seconds);
 }
 
 Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const EffectChain& chain, Steps& steps) {
@@ -241,6 +256,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
     SceneComparison compared = scene_table(flags, in, out.capture, chain, profile, steps);
     out.table = std::move(compared.table);
     out.inputs.pose_refinement = compared.refinement;
+    out.inputs.material_names = std::move(compared.material_names);
   }
   const LidarDataFormat& format = out.capture.metadata.format;
   CompareInputs& inputs = out.inputs;

@@ -38,16 +38,22 @@ struct MeasuredFlags {
 // --refine-pose, --static and --map.
 void add_measured_options(CLI::App* sub, MeasuredFlags& flags);
 
-// One line per step on a terminal ("reading the capture ... 0.1 s"), a bar while casting.
+// The steps on stderr: on a terminal one line per step ("reading the capture ... 0.1 s"), a bar
+// while casting; in a log plain lines (the step as it starts, each quarter of a bar, the step's
+// time), so a log shows what a long step is doing.
 class Steps {
  public:
-  Steps();  // shows anything only when stderr is a terminal
+  Steps();
   void start(const char* what);
   void progress(const char* what, double fraction) const;
+  // Within a step: what it does now ("diagnosing: fitting incidence (E4), 3 of 8").
+  void note(const std::string& what) const;
   void done() const;
 
  private:
   bool tty_;
+  std::string what_;
+  mutable int printed_quarter_ = 0;
   std::chrono::steady_clock::time_point started_;
 };
 

@@ -76,7 +76,8 @@ void setup_points(CLI::App& app, std::function<int()>& run) {
                   "the sensor's metadata JSON (optional for an OSF file, which carries it)")
       ->check(CLI::ExistingFile);
   sub->add_option("--out", flags->out,
-                  "the .npz: xyz (N x 3, m), t_s (column timestamp, s), row, column; per frame frame_offsets "
+                  "the .npz: xyz (flat, x y z of each point in turn: reshape(-1, 3); m), t_s (column timestamp, s), "
+                  "row, column; per frame frame_offsets "
                   "(F + 1, into the points), frame_t_s (first valid column), frame_id")
       ->required();
   sub->add_option("--frames", flags->frames, "at most this many frames (0 = all)")->capture_default_str();

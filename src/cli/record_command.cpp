@@ -134,13 +134,21 @@ Metadata make_record_metadata(const RecordFlags& flags, const SensorChoice& sens
   }
 }
 
-// "\r[=====     ] 12/100 frames, 3.1x real time" on stderr, only when stderr is a terminal.
+// "\r[=====     ] 12/100 frames, 3.1x real time" on stderr when it is a terminal; in a log, a plain
+// line at every tenth of the frames ("record: 12/100 frames, 3.1x real time").
 class ProgressBar {
  public:
-  ProgressBar(int total, int fps) : total_(total), fps_(fps), enabled_(isatty(STDERR_FILENO) != 0) {}
+  ProgressBar(int total, int fps) : total_(total), fps_(fps), tty_(isatty(STDERR_FILENO) != 0) {}
   void update(int done) const {
-    if (!enabled_) return;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    if (!tty_) {
+      const int tenth = done * 10 / total_;
+      if (tenth == printed_tenth_) return;
+      printed_tenth_ = tenth;
+      std::fprintf(stderr, "record: %d/%d frames, %.1fx real time\n", done, total_,
+                   elapsed > 0 ? done / (fps_ * elapsed) : 0.0);
+      return;
+    }
     const int width = 30;
     const int filled = done * width / total_;
     std::fprintf(stderr, "\r[%s%s] %d/%d frames, %.1fx real time",
@@ -153,7 +161,8 @@ class ProgressBar {
  private:
   int total_;
   int fps_;
-  bool enabled_;
+  bool tty_;
+  mutable int printed_tenth_ = 0;
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
@@ -179,7 +188,12 @@ int run_record(const RecordFlags& flags) {
       record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
               flags.out, flags.ideal ? ImuNoise{} : profile.imu, flags.uptime_s, &stop_requested},
              [&bar](int done) { bar.update(done); });
-  if (frames == flags.frames) return 0;
+  if (frames == flags.frames) {
+    std::printf("recorded %d frames of %s (%s) to %s: capture.pcap, metadata.json, poses.tum%s\n", frames,
+                profile.name.c_str(), metadata.config_params.value("lidar_mode", "").c_str(), flags.out.c_str(),
+                poses->constant() ? "" : ", column_poses.tum");
+    return 0;
+  }
   std::fprintf(stderr, "\nrecord: interrupted after %d of %d frames; %s holds them, every file complete\n", frames,
                flags.frames, flags.out.c_str());
   return 130;  // the shell's code for an interrupted command (128 + SIGINT)

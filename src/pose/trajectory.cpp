@@ -12,6 +12,7 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/pose/pose.h"
+#include "lidartwin/pose/pose_source.h"
 #include "pose/pose_text.h"
 
 namespace lidartwin {
@@ -228,6 +229,18 @@ void TumWriter::close() {
   const bool closed = std::fclose(file_) == 0;
   file_ = nullptr;
   if (!closed || failed) throw InputError(path_.string() + ": write failed");
+}
+
+}  // namespace lidartwin
+
+namespace lidartwin {
+
+bool TrajectoryPoses::constant() const {
+  const std::vector<StampedPose>& samples = trajectory_.samples();
+  return std::all_of(samples.begin(), samples.end(), [&](const StampedPose& s) {
+    return s.pose.translation == samples.front().pose.translation &&
+           s.pose.rotation.coeffs() == samples.front().pose.rotation.coeffs();
+  });
 }
 
 }  // namespace lidartwin

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "lidartwin/error.h"
 #include "lidartwin/json/json_reader.h"
 #include "lidartwin/profile/product_line.h"
 #include "lidartwin/profile/sensor_profile.h"
@@ -148,6 +149,14 @@ ImuNoise read_imu(const json& value, const Location& at) {
 
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source) {
   const Location root{std::string(source), ""};
+  // A sensor's metadata (protocol doc 3.1) where a profile belongs: say so, rather than name its
+  // first key as unknown. (The CLI's --profile reads metadata as its unit's twin before this.)
+  for (const char* key : {"sensor_info", "lidar_data_format", "config_params", "base_pn", "prod_sn"}) {
+    if (document.is_object() && document.contains(key) && !document.contains("effects")) {
+      throw InputError(std::string(source) + ": this is a sensor's metadata, not a profile (it has \"" + key +
+                       "\"); a profile is profiles/*.json or what `lidartwin fit` writes");
+    }
+  }
   const ObjectReader top(document, root,
                          {"prod_line", "prod_pn", "source", "min_range_m", "max_range_m", "beam_divergence_rad",
                           "lidar_modes", "beam_intrinsics", "effects", "imu", "fit"});  // fit: `lidartwin fit`'s notes

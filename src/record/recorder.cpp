@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "lidartwin/error.h"
@@ -29,13 +30,18 @@ constexpr uint16_t kImuPort = 7503;
 // every frame's end (pipeline_bench (d) from the drone's pose: 15-23 M pixels/s, now 24-25).
 class CaptureWriter {
  public:
-  CaptureWriter(const ForwardModel& model, const std::filesystem::path& dir)
+  // column_poses: write DIR/column_poses.tum (not for a constant pose: 20 480 identical rows per
+  // 20 frames of 1024 columns say nothing poses.tum does not).
+  CaptureWriter(const ForwardModel& model, const std::filesystem::path& dir, bool column_poses)
       : model_(model),
         pcap_(dir / "capture.pcap", PcapFlush::kInBlocks),
-        column_poses_(dir / "column_poses.tum", "column poses"),
         imu_(model.format().udp_profile_imu == UdpProfileImu::kLegacy),
         ready_(model.packet_columns().size()) {
-    append(column_poses_, kTumHeader);
+    std::filesystem::remove(dir / "column_poses.tum");  // a previous record's into the same directory
+    if (column_poses) {
+      column_poses_.emplace(dir / "column_poses.tum", "column poses");
+      append(*column_poses_, kTumHeader);
+    }
   }
 
   // Before frame k renders into `encoded`.
@@ -60,7 +66,7 @@ class CaptureWriter {
 
   void close() {
     pcap_.close();
-    column_poses_.close();
+    if (column_poses_) column_poses_->close();
   }
 
   // Writes the IMU packets due up to (and including) time_ns.
@@ -93,13 +99,14 @@ class CaptureWriter {
   // from, at the column's timestamp (the packets' clock, in seconds).
   void write_packet(size_t index) {
     write_lidar(model_.packet(*encoded_, index), model_.packet_timestamp_ns(frame_, index));
+    if (!column_poses_) return;
     const int first = model_.packet_columns()[index];
     for (int m = first; m < first + model_.format().columns_per_packet; ++m) {
       const auto column = static_cast<size_t>(m);
       if (!encoded_->columns.observed[column]) continue;
       const TumRow row =
           tum_row(static_cast<double>(encoded_->scan.timestamp_ns[column]) * 1e-9, encoded_->columns.poses[column]);
-      append(column_poses_, row.view());
+      append(*column_poses_, row.view());
     }
   }
 
@@ -123,7 +130,8 @@ class CaptureWriter {
 
   const ForwardModel& model_;
   PcapWriter pcap_;
-  BlockFileWriter column_poses_;  // a row per column: in blocks, as the capture (no page cache)
+  // A row per column: in blocks, as the capture (no page cache); none for a constant pose.
+  std::optional<BlockFileWriter> column_poses_;
   bool imu_;
   uint64_t imu_sample_ = 0;
   // The frame being written: its packets' ready flags and the next one to write (in send order).
@@ -167,7 +175,7 @@ int record(const Recording& recording, const std::function<void(int frames_done)
   write_metadata(recording.metadata, recording.out_dir / "metadata.json");
   WorkerPool pool(recording.threads);
   const ForwardModel model(recording.scene, recording.poses, model_setup(recording), pool);
-  CaptureWriter capture(model, recording.out_dir);
+  CaptureWriter capture(model, recording.out_dir, !recording.poses.constant());
   EncodedFrame encoded = model.make_frame_buffer();
   std::vector<StampedPose> poses;
   int frames = 0;  // recorded

@@ -19,6 +19,23 @@ namespace lidartwin {
 
 inline constexpr const char* kCompareReportSchema = "lidartwin.compare/1";
 
+// A failing region as the report leads with it (report.json's "failing_runs"): neighbouring bins
+// of one feature that fail in the same quantity the same way merged into one run ("beams 40–44"),
+// runs ranked by the misfit they explain (nats in total, not per pixel, so a broad failure outranks
+// a narrow bin), materials named as the scene names them.
+struct FailingRun {
+  std::string quantity;
+  Region region;  // the run's span
+  size_t bins = 1;
+  size_t pixels = 0;
+  double misfit_nats = 0.0;
+  double p_value = 1.0;  // its bins' smallest (corrected)
+  std::string where;     // "beams 40–44", "material wall_grey (48)"
+  std::string sentence;
+};
+// material_names: by material id; empty or "" where the scene names none.
+std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std::string>& material_names);
+
 // One profile's row of the waterfall (lidar-physics.md 3.6): the error measures that fall as the
 // model improves, on the same pixels.
 struct WaterfallStep {
@@ -28,9 +45,37 @@ struct WaterfallStep {
   double spread_ratio_median = 1.0;  // median over those bins
   double detection_log_loss = 0.0;   // per pixel that meets a surface
   size_t failing = 0;
+  std::vector<FailingRun> failing_runs;  // its own, largest misfit first (report.html's table)
 };
-WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit);
+// material_names: as failing_runs takes them.
+WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit,
+                             const std::vector<std::string>& material_names = {});
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps);
+
+// The standardized range residuals (z) of the returns in one band of ideal range, counted in
+// kResidualBins bins over [-6, 6], the outer ones taking what lies beyond: report.html's residual
+// histograms, from report.json alone (pixels.npz is written only on request).
+struct ResidualHistogram {
+  static constexpr int kBins = 120;
+  double lo_m = 0.0, hi_m = 0.0;
+  size_t returns = 0;
+  std::vector<uint32_t> counts;
+};
+// The bands 0-5, 5-13, 13-35 m and beyond; returns the model does not rule out.
+std::vector<ResidualHistogram> residual_histograms(const PixelTable& table, const PixelScores& scores);
+
+// The misfit as a range image (report.json's "range_image"): beam x azimuth sector, one image per
+// quantity that fails anywhere, so a user sees where on the sensor's own picture it lies. Per cell:
+// bias, the mean z of the inliers (|z| <= 5); spread, their sd (1 where the model is right);
+// detection, the measured minus the predicted return rate of the pixels that meet a surface;
+// outliers, the share of returns beyond 5 sigma. NaN where a cell has no such pixel.
+struct RangeImage {
+  static constexpr int kAzimuthBins = 128;
+  int beams = 0;
+  std::vector<uint32_t> pixels;  // beam-major, beams x kAzimuthBins
+  std::vector<std::pair<std::string, std::vector<float>>> quantities;
+};
+RangeImage range_image(const PixelTable& table, const PixelScores& scores, const Misfit& misfit);
 
 // What was compared: report.json's "inputs".
 struct CompareInputs {
@@ -47,6 +92,7 @@ struct CompareInputs {
   std::optional<PoseRefinement> pose_refinement;  // --refine-pose
   std::optional<FrameRegistration> registration;  // --map without --pose
   std::optional<MapExclusions> map;               // --map: what was compared and what left out
+  std::vector<std::string> material_names;        // the scene's, by material id (Embree geometry)
 };
 
 // Everything `compare` found; report.json is this, written by report_json alone.
@@ -56,8 +102,16 @@ struct CompareResult {
   double alpha = 0.01;
   std::vector<WaterfallStep> waterfall;  // every profile's row; written when there are several
   std::optional<Diagnosis> diagnosis;    // --diagnose
+  std::vector<ResidualHistogram> residuals;
+  std::optional<RangeImage> image;
+  // The command that applies the diagnosis (`lidartwin fit ... --add ...`); empty: nothing to apply.
+  std::string next_command;
 };
 nlohmann::json report_json(const CompareResult& result);
+
+// What is wrong and what to do next, in one sentence: where the misfit lies (the two quantities
+// that carry most of it, each with its worst region), what --diagnose found, and the next command.
+std::string verdict_sentence(const CompareResult& result);
 
 // Every column of the table and of the scores, one array each (names: docs/compare-report.md).
 void write_pixels_npz(const std::filesystem::path& path, const PixelTable& table, const PixelScores& scores);

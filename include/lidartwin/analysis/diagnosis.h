@@ -6,6 +6,7 @@
 // given it while the improvement stays significant, so two hidden effects are both found. The
 // profile's range noise law may instead have the wrong form: laws of the other forms are tried in
 // its place in the same rounds, and compared with the added effects by BIC.
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -111,7 +112,9 @@ struct Diagnosis {
 struct DiagnoseOptions {
   double alpha = 0.01;          // the LRT's level, Bonferroni-corrected over the candidates
   double min_delta_bic = 10.0;  // "very strong" evidence on the Kass-Raftery scale
-  size_t max_pixels = 200'000;  // evenly subsampled from the table for the fits
+  // The fits' pixels: every k-th that meets a surface, k = (their number / max_pixels) rounded down,
+  // so between max_pixels and twice that (an odd stride would fit every beam: effect_fit.cpp).
+  size_t max_pixels = 200'000;
   int max_effects = 3;
   // Refit the profile's own fittable effects first, where the profile fails somewhere (a profile
   // that fits everywhere keeps its values): compare --keep-profile turns it off.
@@ -126,6 +129,9 @@ struct DiagnoseOptions {
   // The workers the fits' likelihood sums are spread over (the same results whatever its size);
   // none: the calling thread.
   WorkerPool* pool = nullptr;
+  // Told what the search does as it goes ("round 1: fitting incidence, 3 of 8"): a long search is
+  // not silent. None: quiet.
+  std::function<void(const std::string&)> progress;
 };
 
 // chain: the profile's. misfit: find_misfit's result on the same table (for the repairs).

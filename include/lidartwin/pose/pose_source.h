@@ -41,6 +41,9 @@ class PoseSource {
   // Live sources: what the poses at() answers from were last updated with (the streamer measures
   // from it the latency from a pose's arrival to the first packet cast with it).
   virtual PoseFreshness freshness() const { return {}; }
+  // The same pose at every time (a fixed pose, a trajectory whose samples are all one): `record`
+  // then writes no per-column poses (every column's pose is poses.tum's).
+  virtual bool constant() const { return false; }
 };
 
 // One pose forever.
@@ -50,6 +53,7 @@ class StaticPose final : public PoseSource {
   Pose at(double) const override { return pose_; }
   PoseSpan span() const override { return {}; }
   double start_s() const override { return 0.0; }
+  bool constant() const override { return true; }
 
  private:
   Pose pose_;
@@ -65,6 +69,7 @@ class TrajectoryPoses final : public PoseSource {
   Pose at(double time_s) const override { return trajectory_.at(time_s); }
   PoseSpan span() const override { return span_; }
   double start_s() const override { return trajectory_.start_s(); }
+  bool constant() const override;
   const Trajectory& trajectory() const { return trajectory_; }
 
  private:
@@ -82,6 +87,7 @@ class MountedPoses final : public PoseSource {
   PoseSpan span() const override { return vehicle_.span(); }
   double start_s() const override { return vehicle_.start_s(); }
   PoseFreshness freshness() const override { return vehicle_.freshness(); }
+  bool constant() const override { return vehicle_.constant(); }
 
  private:
   const PoseSource& vehicle_;

@@ -46,7 +46,8 @@ struct Recording {
 // it would leave the sensor).
 // poses.tum: one row per frame, world_from_sensor at the frame's column 0, stamped with that
 // column's timestamp in seconds, plus one where the last frame ends; column_poses.tum: the pose
-// each observed column was cast from, at its timestamp.
+// each observed column was cast from, at its timestamp, written only when the pose varies (not for
+// a PoseSource that is constant(): a fixed --pose, or a trajectory of one pose).
 // progress(frames_done) is called after each frame. Returns the frames recorded: `frames`, or fewer
 // if `stop` was set.
 int record(const Recording& recording, const std::function<void(int frames_done)>& progress);
