@@ -1,7 +1,9 @@
-// The failing regions merged into runs and ranked by the misfit they explain (compare_report.h):
+// The failing regions merged into runs and ranked by the misfit they explain, those that localize
+// it first (compare_report.h):
 // what the terminal and report.html list, where report.json's "failing" keeps every bin.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -140,8 +142,22 @@ std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std
     current.push_back(f);
   }
   if (!current.empty()) runs.push_back(make_run(current, material_names));
-  std::stable_sort(runs.begin(), runs.end(),
-                   [](const FailingRun& a, const FailingRun& b) { return a.misfit_nats > b.misfit_nats; });
+  // A run over most of its feature's pixels ("incidence above 0°", every bin failing and merged)
+  // carries the whole capture's misfit but says nothing of where it is: such runs come after those
+  // that localize it, each group by the misfit it explains.
+  std::map<std::string, size_t> feature_pixels;  // what each single feature bins, over its bins
+  for (const BinMisfit& b : misfit.bins) {
+    if (b.region.size() == 1) feature_pixels[b.region.front().first] += b.pixels;
+  }
+  const auto localizes = [&](const FailingRun& run) {
+    if (run.region.size() != 1) return true;
+    const auto all = feature_pixels.find(run.region.front().first);
+    return all == feature_pixels.end() || 2 * run.pixels <= all->second;
+  };
+  std::stable_sort(runs.begin(), runs.end(), [&](const FailingRun& a, const FailingRun& b) {
+    const bool la = localizes(a), lb = localizes(b);
+    return la != lb ? la : a.misfit_nats > b.misfit_nats;
+  });
   return runs;
 }
 

@@ -201,7 +201,7 @@ void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::ve
   const std::vector<FailingRun> runs = failing_runs(misfit, material_names);
   std::printf(
       "%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected), %zu after merging neighbouring bins; "
-      "largest misfit first:\n",
+      "largest misfit first (runs over most of their feature last):\n",
       misfit.failing.size(), flags.alpha, s.tests, runs.size());
   for (size_t i = 0; i < std::min(flags.show, runs.size()); ++i) {
     std::printf("  %2zu. [%s] %s\n", i + 1, runs[i].quantity.c_str(), runs[i].sentence.c_str());

@@ -2,6 +2,7 @@
 // they explain, materials by the scene's names (issue 24: "beams 40, 41, 42, 43 and 44 are five
 // rows"; "material 48" though the scene names it).
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -47,6 +48,24 @@ TEST(FailingRuns, NeighbouringBinsFailingAlikeAreOneRunRankedByTheirTotalMisfit)
             "range 13–35 m: the measured range is 3.0–5.0 mm longer than the model's (2 bins, 2000 pixels)");
   EXPECT_EQ(runs[3].where, "beam 45");
   EXPECT_EQ(runs[4].where, "beam 47");
+}
+
+// Every incidence bin failing, merged, holds all the pixels and the most misfit, but says nothing
+// of where the model fails: the run that localizes it comes first.
+TEST(FailingRuns, ARunOverMostOfItsFeatureComesAfterThoseThatLocalizeTheMisfit) {
+  Misfit misfit;
+  for (const auto& [lo, hi] : {std::pair{0.0, 30.0}, {30.0, 45.0}, {45.0, 60.0}, {60.0, 75.0}, {75.0, 90.0}}) {
+    misfit.failing.push_back(bias("incidence", lo, hi, 0.004, 300.0));
+    misfit.bins.push_back({{{"incidence", {lo, hi}}}, 1000});
+  }
+  misfit.failing.push_back(bias("range", 13, 20, 0.006, 800.0));
+  for (int lower : {0, 13, 20}) misfit.bins.push_back({{{"range", {static_cast<double>(lower), lower + 7.0}}}, 1000});
+  const std::vector<FailingRun> runs = failing_runs(misfit, {});
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_EQ(runs[0].where, "range 13–20 m");  // 800 nats in a third of the pixels
+  EXPECT_EQ(runs[1].region.front().first, "incidence");
+  EXPECT_EQ(runs[1].bins, 5u);
+  EXPECT_DOUBLE_EQ(runs[1].misfit_nats, 1500.0);
 }
 
 TEST(FailingRuns, MaterialsAreNamedAsTheSceneNamesThemAndNeverMerged) {
