@@ -49,6 +49,23 @@ void expect_covers(const nlohmann::json& params, const std::string& name, double
   EXPECT_GE(p["ci95"][1].get<double>(), truth) << name << ": " << p.dump();
 }
 
+// Each fitted parameter has a robust (sandwich) interval beside the curvature's. With the right
+// model and independent pixels the two agree to within a factor 1.5 either way (the information
+// equality); beside a wrong noise law the robust one is the wider (min_ratio).
+void expect_robust_intervals(const nlohmann::json& selected, double min_ratio = 1 / 1.5, double max_ratio = 1.5) {
+  for (const auto& c : selected) {
+    for (const auto& [name, p] : c["params"].items()) {
+      ASSERT_TRUE(p.contains("ci95_robust")) << name << ": " << p.dump();
+      const double width = p["ci95"][1].get<double>() - p["ci95"][0].get<double>();
+      const double robust = p["ci95_robust"][1].get<double>() - p["ci95_robust"][0].get<double>();
+      EXPECT_LE(p["ci95_robust"][0].get<double>(), p["value"].get<double>()) << name;
+      EXPECT_GE(p["ci95_robust"][1].get<double>(), p["value"].get<double>()) << name;
+      EXPECT_GT(robust, width * min_ratio) << name << ": " << p.dump();
+      EXPECT_LT(robust, width * max_ratio) << name << ": " << p.dump();
+    }
+  }
+}
+
 double excess_se(const nlohmann::json& step) {
   return (step["nll_per_pixel"].get<double>() - step["nll_expected"].get<double>()) / step["nll_se"].get<double>();
 }
@@ -182,6 +199,39 @@ TEST(CompareNoiseLaw, ADatasheetCaptureAgainstTheLinearLawReplacesItByTheTableAn
     }
   }
   EXPECT_EQ(selected, (std::set<std::string>{"dropout", "incidence"})) << d["selected"].dump(1);
+  expect_robust_intervals(d["selected"]);
+  EXPECT_EQ(d["remaining"]["failing_regions"], 0) << d["remaining"].dump();
+  EXPECT_EQ(d["intervals_caveat"], "") << "the model fits once the law is replaced";
+
+  // With the paper's law kept (--keep-profile), incidence is fitted beside a wrong law: its
+  // divergence is pulled off the truth, as issue 24 met it (0.00192 [0.00191, 0.00193] against
+  // 0.00227). The diagnosis says so beside the intervals: the terminal, report.json, report.html.
+  // The robust interval sees the wrong spread and widens (about 3 times here), but no interval
+  // conditional on the model reaches a truth the wrong law pulls the value from: the caveat says so.
+  const fs::path kept = dir / "kept";
+  const test::CliRun k = run_cli("compare" + inputs +
+                                 " --frames 2 --diagnose --keep-profile --profile os1-32-paper --out " + kept.string());
+  ASSERT_EQ(k.exit_code, 0) << k.output;
+  const nlohmann::json dk = read_json(kept / "report.json")["diagnosis"];
+  ASSERT_FALSE(dk["selected"].empty()) << dk.dump(1);
+  EXPECT_GT(dk["remaining"]["failing_regions"].get<int>(), 0) << dk["remaining"].dump();
+  const std::string caveat = dk["intervals_caveat"];
+  EXPECT_EQ(caveat.rfind("The intervals hold if the rest of the model is right, and it is not", 0), 0u) << caveat;
+  EXPECT_NE(k.output.find(caveat), std::string::npos) << k.output;
+  for (const auto& c : dk["selected"]) {
+    if (c["effect"] != "incidence") continue;
+    const auto& p = c["params"]["divergence_rad"];
+    std::printf("  beside the wrong law: divergence %.6g [%.6g, %.6g], robust [%.6g, %.6g], truth %.6g\n",
+                p["value"].get<double>(), p["ci95"][0].get<double>(), p["ci95"][1].get<double>(),
+                p["ci95_robust"][0].get<double>(), p["ci95_robust"][1].get<double>(), divergence);
+    const double width = p["ci95"][1].get<double>() - p["ci95"][0].get<double>();
+    EXPECT_GT(p["ci95_robust"][1].get<double>() - p["ci95_robust"][0].get<double>(), 1.5 * width) << p.dump();
+  }
+  std::ifstream page(kept / "report.html");
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("<b>About the intervals:</b> The intervals hold if the rest of the model is right"),
+            std::string::npos);
+  EXPECT_NE(html.find("(robust ["), std::string::npos);
 
   const fs::path fitted = dir / "fitted.json";
   const test::CliRun fit =

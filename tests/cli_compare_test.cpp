@@ -253,7 +253,7 @@ TEST_F(Compare, ThePapersLinearLawFailsTheDatasheetCaptureInTheRangeBandsWhereTh
   EXPECT_GE((*spread)["bins"].get<int>(), 2);
   const std::string sentence = (*spread)["sentence"];
   EXPECT_NE(sentence.find(": the measured spread is 0.3"), std::string::npos) << sentence;
-  EXPECT_NE(r.out.find("after merging neighbouring bins; largest misfit first (runs over most of their feature last):"),
+  EXPECT_NE(r.out.find("after merging neighbouring bins; those whose misfit their feature explains most first:"),
             std::string::npos)
       << r.out;
   // The verdict names the quantity that carries most of the misfit first, with its worst region.
@@ -492,6 +492,16 @@ TEST_F(Compare, AHiddenWarmUpDriftShowsAsBiasFallingWithTime) {
   const auto& worst = report["failing"][0];
   EXPECT_EQ(worst["quantity"], "bias") << worst["sentence"];
   EXPECT_TRUE(worst["features"].contains("time")) << worst["sentence"];
+  // The terminal and the verdict lead with time, the cause, and how the bias falls with it: not
+  // with a material, whose bins are all 7 mm long alike (issue 24).
+  const auto& first_run = report["failing_runs"][0];
+  EXPECT_EQ(first_run["quantity"], "bias") << first_run["sentence"];
+  EXPECT_TRUE(first_run["features"].contains("time")) << first_run["sentence"];
+  EXPECT_EQ(first_run["trend"], "falling with time") << first_run["sentence"];
+  EXPECT_NE(
+      report["verdict_sentence"].get<std::string>().find("the range bias (worst: time 0.00–2.00 s, falling with time)"),
+      std::string::npos)
+      << report["verdict_sentence"];
   // The diagnosis names E12 and fits the warm-up it was recorded with.
   const auto& diagnosis = report["diagnosis"];
   EXPECT_EQ(diagnosis["verdict"], "missing effect");
@@ -770,6 +780,10 @@ TEST_F(Compare, TheDiagnosisNamesHiddenMixedPixelsAtDepthEdges) {
     outliers_at_edges = outliers_at_edges || (f["quantity"] == "outliers" && f["features"].contains("edge"));
   }
   EXPECT_TRUE(outliers_at_edges) << report["failing"].dump(1);
+  // The first run names the distance to depth edges, the cause, not a material (issue 24).
+  const auto& first_run = report["failing_runs"][0];
+  EXPECT_EQ(first_run["quantity"], "outliers") << first_run["sentence"];
+  EXPECT_TRUE(first_run["features"].contains("edge")) << first_run["sentence"];
   const auto& diagnosis = report["diagnosis"];
   EXPECT_EQ(diagnosis["verdict"], "missing effect");
   ASSERT_EQ(diagnosis["selected"].size(), 1u) << diagnosis.dump(1);

@@ -240,6 +240,16 @@ def number(value):
     return "%.4g" % value
 
 
+def fitted_value(name, p):
+    """"divergence_rad = 0.00192 [0.00191, 0.00193] (robust [0.00185, 0.00199])": the curvature's
+    interval, and the sandwich's where the diagnosis computed one."""
+    text = "%s = %s [%s, %s]" % (html.escape(name), number(p["value"]), number(p["ci95"][0]), number(p["ci95"][1]))
+    robust = p.get("ci95_robust")
+    if robust and robust[0] is not None and robust[1] is not None:
+        text += " (robust [%s, %s])" % (number(robust[0]), number(robust[1]))
+    return text
+
+
 def diagnosis_section(report):
     """What --diagnose found, as the terminal prints it: the effects it selected with their values and
     95 % intervals, replacements and refits, what stays unexplained, and the command that applies it."""
@@ -250,12 +260,14 @@ def diagnosis_section(report):
     rows = "".join(
         "<tr><td>%s (%s)</td><td>%+.1f</td><td>%s</td></tr>"
         % (html.escape(c["effect"]), html.escape(c["catalogue"]), c["delta_bic"],
-           "<br>".join("%s = %s [%s, %s]" % (html.escape(name), number(p["value"]), number(p["ci95"][0]),
-                                               number(p["ci95"][1])) for name, p in c["params"].items()))
+           "<br>".join(fitted_value(name, p) for name, p in c["params"].items()))
         for c in d["selected"])
     if rows:
         parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC</th>"
-                     "<th>fitted value [95 %% interval]</th></tr>%s</table>" % rows)
+                     "<th>fitted value [95 %% interval] (robust interval)</th></tr>%s</table>" % rows)
+    if d.get("intervals_caveat"):
+        parts.append("<p class=\"intervals-caveat\"><b>About the intervals:</b> %s</p>"
+                     % html.escape(d["intervals_caveat"]))
     else:
         parts.append("<p>No library effect is selected.</p>")
     items = ["replace: " + r["sentence"] for r in d["replace"]]

@@ -170,8 +170,10 @@ nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
                    {"bins", run.bins},
                    {"pixels", run.pixels},
                    {"misfit_nats", run.misfit_nats},
+                   {"localized_nats", run.localized_nats},
                    {"p_value", run.p_value},
                    {"where", run.where},
+                   {"trend", run.trend},
                    {"sentence", run.sentence}});
   }
   return out;

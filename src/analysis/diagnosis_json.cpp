@@ -1,12 +1,17 @@
 // report.json's "diagnosis" (docs/compare-report.md).
 #include "lidartwin/analysis/diagnosis.h"
 
+#include <cmath>
+
 namespace lidartwin {
 namespace {
 
 nlohmann::json params_json(const std::vector<FittedParameter>& params) {
   nlohmann::json out = nlohmann::json::object();
-  for (const FittedParameter& p : params) out[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+  for (const FittedParameter& p : params) {
+    out[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+    if (!std::isnan(p.robust_lo)) out[p.name]["ci95_robust"] = {p.robust_lo, p.robust_hi};
+  }
   return out;
 }
 
@@ -91,9 +96,17 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
   }
   nlohmann::json replace = nlohmann::json::array();
   for (const Replacement& r : d.replace) replace.push_back(replacement_json(r));
-  return {{"verdict", d.verdict},       {"not_selected", not_selected}, {"shared", shared},
-          {"ranked", ranked},           {"selected", selected},         {"pixels", d.pixels},
-          {"unexplained", unexplained}, {"parameter_misfit", refits},   {"replace", replace}};
+  return {{"verdict", d.verdict},
+          {"not_selected", not_selected},
+          {"shared", shared},
+          {"ranked", ranked},
+          {"selected", selected},
+          {"pixels", d.pixels},
+          {"unexplained", unexplained},
+          {"parameter_misfit", refits},
+          {"replace", replace},
+          {"remaining", {{"failing_regions", d.remaining_failing}, {"excess_se", d.remaining_excess_se}}},
+          {"intervals_caveat", d.intervals_caveat}};
 }
 
 }  // namespace lidartwin

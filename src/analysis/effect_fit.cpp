@@ -1,11 +1,12 @@
 // An effect's free parameters fitted by maximum likelihood on the pixel table (lidar-physics.md
 // 3.5): NLopt BOBYQA on the same per-pixel likelihood compare scores with, 95 % intervals from the
-// curvature of the NLL; E10's per-beam tables in closed form.
+// curvature of the NLL and robust ones from the sandwich; E10's per-beam tables in closed form.
 #include "effect_fit.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 
 #include <fmt/format.h>
@@ -101,40 +102,60 @@ namespace {
 constexpr size_t kChunkRows = 4096;
 }  // namespace
 
+namespace {
+
+// Row k's NLL under a chain whose first prefix.count() effects predicted prefix[k].
+double row_nll(const PixelTable& t, const FitRows& rows, size_t k, const EffectChain& chain, const SharedPrefix& prefix,
+               const PatternAdjustment* adjust) {
+  const size_t i = rows[k];
+  Prediction p;
+  if (prefix.count() == 0) {
+    p = chain.predict(t.ideal_of(i), t.context_of(i));
+  } else {
+    p = prefix[k];
+    const IdealReturn ideal = t.ideal_of(i);
+    const ColumnContext context = t.context_of(i);
+    const auto& effects = chain.effects();
+    for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(ideal, context, p);
+  }
+  if (adjust) adjust->apply(i, p);
+  return pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
+}
+
+// chunk(c, first, last) for each chunk of kChunkRows rows, on the rows' pool where it has workers.
+template <typename Chunk>
+void for_each_chunk(const FitRows& rows, Chunk chunk) {
+  const size_t chunks = (rows.size() + kChunkRows - 1) / kChunkRows;
+  const auto run = [&](size_t c) { chunk(c, c * kChunkRows, std::min(rows.size(), (c + 1) * kChunkRows)); };
+  if (rows.pool && rows.pool->size() > 1 && chunks > 1) {
+    rows.pool->run(static_cast<int>(chunks), [&](int, int c) { run(static_cast<size_t>(c)); });
+  } else {
+    for (size_t c = 0; c < chunks; ++c) run(c);
+  }
+}
+
+}  // namespace
+
 double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const SharedPrefix& prefix,
                  const PatternAdjustment* adjust) {
-  const auto& effects = chain.effects();
-  const auto chunk_nll = [&](size_t first, size_t last) {
+  std::vector<double> sums((rows.size() + kChunkRows - 1) / kChunkRows, 0.0);
+  for_each_chunk(rows, [&](size_t c, size_t first, size_t last) {
     double nll = 0.0;
-    for (size_t k = first; k < last; ++k) {
-      const size_t i = rows[k];
-      Prediction p;
-      if (prefix.count() == 0) {
-        p = chain.predict(t.ideal_of(i), t.context_of(i));
-      } else {
-        p = prefix[k];
-        const IdealReturn ideal = t.ideal_of(i);
-        const ColumnContext context = t.context_of(i);
-        for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(ideal, context, p);
-      }
-      if (adjust) adjust->apply(i, p);
-      nll += pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
-    }
-    return nll;
-  };
-  const size_t chunks = (rows.size() + kChunkRows - 1) / kChunkRows;
-  std::vector<double> sums(chunks, 0.0);
-  const auto run_chunk = [&](size_t c) {
-    sums[c] = chunk_nll(c * kChunkRows, std::min(rows.size(), (c + 1) * kChunkRows));
-  };
-  if (rows.pool && rows.pool->size() > 1 && chunks > 1) {
-    rows.pool->run(static_cast<int>(chunks), [&](int, int c) { run_chunk(static_cast<size_t>(c)); });
-  } else {
-    for (size_t c = 0; c < chunks; ++c) run_chunk(c);
-  }
+    for (size_t k = first; k < last; ++k) nll += row_nll(t, rows, k, chain, prefix, adjust);
+    sums[c] = nll;
+  });
   double nll = 0.0;
   for (const double s : sums) nll += s;  // in chunk order, whichever worker summed each
   return nll;
+}
+
+std::vector<double> row_nlls(const PixelTable& t, const FitRows& rows, const EffectChain& chain,
+                             const SharedPrefix& prefix, const PatternAdjustment* adjust) {
+  std::vector<double> out(rows.size());
+  for_each_chunk(rows, [&](size_t, size_t first, size_t last) {
+    for (size_t k = first; k < last; ++k) out[k] = row_nll(t, rows, k, chain, prefix, adjust);
+  });
+  return out;
 }
 
 namespace {
@@ -240,6 +261,24 @@ Candidate fit_beam_calibration(const PixelTable& t, const FitRows& rows, const P
   const double nll = total_nll(t, rows, place.chain_with(c.effect_json), adjust);
   score_candidate(c, base_nll, nll, 2.0 * static_cast<double>(beams.size()), rows.size());
   return c;
+}
+
+// The score's covariance as the data give it: the per-pixel gradients of the NLL (gradients[j][k]:
+// parameter j, row k) summed over blocks of a frame's 32 neighbouring columns, their outer products
+// added. Blocks, not pixels: neighbouring pixels see the same surface, and a misfit shared by them
+// counts once per block, as the evidence it is.
+Eigen::MatrixXd score_covariance(const PixelTable& t, const FitRows& rows,
+                                 const std::vector<std::vector<double>>& gradients) {
+  const auto n = static_cast<Eigen::Index>(gradients.size());
+  std::map<std::pair<uint32_t, uint32_t>, Eigen::VectorXd> blocks;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const size_t i = rows[k];
+    auto [it, added] = blocks.try_emplace({t.frame[i], t.column[i] / 32u}, Eigen::VectorXd::Zero(n));
+    for (Eigen::Index j = 0; j < n; ++j) it->second(j) += gradients[static_cast<size_t>(j)][k];
+  }
+  Eigen::MatrixXd j_matrix = Eigen::MatrixXd::Zero(n, n);
+  for (const auto& [key, g] : blocks) j_matrix += g * g.transpose();
+  return j_matrix;
 }
 
 }  // namespace
@@ -355,12 +394,35 @@ Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, 
   const Eigen::MatrixXd covariance =
       definite ? Eigen::MatrixXd(ldlt.solve(Eigen::MatrixXd::Identity(hessian.rows(), hessian.cols())))
                : Eigen::MatrixXd(hessian.diagonal().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+  // The robust ("sandwich") covariance H^-1 J H^-1: J the covariance of the score measured from the
+  // data, summed over blocks of neighbouring pixels. Where the model is right and pixels are
+  // independent J = H and the two agree; a spread the model gets wrong, or noise shared by
+  // neighbouring pixels (real surfaces, registration), makes J differ from H, and only this one
+  // says so.
+  std::vector<std::vector<double>> gradients(n);
+  for (size_t j = 0; j < n; ++j) {
+    const double up = std::min(x[j] + h[j], upper[j]) - x[j], down = x[j] - std::max(x[j] - h[j], lower[j]);
+    if (up + down <= 0.0) {
+      gradients[j].assign(rows.size(), 0.0);
+      continue;
+    }
+    std::vector<double> above = x, below = x;
+    above[j] += up;
+    below[j] -= down;
+    const std::vector<double> fa = row_nlls(t, rows, place.chain_with(effect_json(above)), prefix, adjust);
+    const std::vector<double> fb = row_nlls(t, rows, place.chain_with(effect_json(below)), prefix, adjust);
+    gradients[j].resize(rows.size());
+    for (size_t k = 0; k < rows.size(); ++k) gradients[j][k] = (fa[k] - fb[k]) / (up + down);
+  }
+  const Eigen::MatrixXd robust = covariance * score_covariance(t, rows, gradients) * covariance;
   for (size_t j = 0; j < n; ++j) {
     const auto jj = static_cast<Eigen::Index>(j);
-    const double variance = covariance(jj, jj);
-    const double half =
-        variance > 0 && hessian(jj, jj) > 0 ? 1.96 * std::sqrt(variance) : std::numeric_limits<double>::infinity();
-    c.params.push_back({spec.free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half)});
+    const auto half_width = [&](double variance) {
+      return variance > 0 && hessian(jj, jj) > 0 ? 1.96 * std::sqrt(variance) : std::numeric_limits<double>::infinity();
+    };
+    const double half = half_width(covariance(jj, jj)), robust_half = half_width(robust(jj, jj));
+    c.params.push_back({spec.free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half),
+                        std::max(lower[j], x[j] - robust_half), std::min(upper[j], x[j] + robust_half)});
   }
   return c;
 }

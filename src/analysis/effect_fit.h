@@ -77,6 +77,9 @@ class SharedPrefix {
 // total_nll of a chain whose first prefix.count() effects are those the prefix was predicted with.
 double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const SharedPrefix& prefix,
                  const PatternAdjustment* adjust = nullptr);
+// The same, row by row (the terms total_nll adds): the robust intervals' per-pixel scores.
+std::vector<double> row_nlls(const PixelTable& t, const FitRows& rows, const EffectChain& chain,
+                             const SharedPrefix& prefix, const PatternAdjustment* adjust = nullptr);
 
 // The chain with `effect` inserted before its range limits (what limits the window must see the
 // shifted range), or appended.
@@ -101,7 +104,8 @@ struct Placement {
 void score_candidate(Candidate& c, double base_nll, double nll, double k, size_t n);
 
 // The spec's free parameters fitted at `place` (NLopt BOBYQA, restarted while it still gains), from
-// the chain's NLL base_nll; scored with k = its free parameters, 95 % intervals from the curvature.
+// the chain's NLL base_nll; scored with k = its free parameters, 95 % intervals from the curvature,
+// and robust ones from the sandwich (FittedParameter).
 Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
               const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr);
 

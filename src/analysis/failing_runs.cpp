@@ -1,9 +1,10 @@
-// The failing regions merged into runs and ranked by the misfit they explain, those that localize
-// it first (compare_report.h):
-// what the terminal and report.html list, where report.json's "failing" keeps every bin.
+// The failing regions merged into runs and ranked by the misfit that sets them apart from the rest
+// of their feature, those that localize it first (compare_report.h): what the terminal and
+// report.html list, where report.json's "failing" keeps every bin.
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -65,30 +66,92 @@ std::string where(const Region& region, const std::vector<std::string>& names) {
   return text;
 }
 
-// A run of several bins in words, with the spread of their values.
+// A run's bins in feature order, as the quantity reads: the bias difference, the spread ratio, or
+// the measured rate.
+std::vector<double> values(const std::vector<const FailingRegion*>& bins) {
+  std::vector<double> v;
+  for (const FailingRegion* f : bins) {
+    const std::string& q = f->quantity;
+    v.push_back(q == "bias"     ? f->measured - f->predicted
+                : q == "spread" ? (f->predicted > 0 ? f->measured / f->predicted : 0.0)
+                                : f->measured);
+  }
+  return v;
+}
+
+std::string ratio_text(double v) { return v < 10.0 ? fmt::format("{:.1f} times", v) : fmt::format("{:.0f} times", v); }
+
+// A feature as "rising with ..." names it.
+std::string feature_noun(const std::string& feature) {
+  if (feature == "signal") return "the expected signal";
+  if (feature == "near_ir") return "the expected near-IR";
+  if (feature == "edge") return "the distance to a depth edge";
+  if (feature == "retro") return "the distance to a retroreflector";
+  return feature;
+}
+
+// A run whose ends differ by half again or more, and hold its smallest and largest misfit, says how
+// the misfit changes along the feature ("falling with time from 21 mm at time 0.00–0.40 s to 0.8
+// mm at time 1.60–2.00 s"): the cause's signature (lidar-physics.md's diagnostic matrix), where a
+// span of values would hide which end is which. One that peaks inside says where.
+struct Trend {
+  std::string way;     // "falling with time", "most at range 13–20 m"
+  std::string detail;  // the way with its values
+};
+std::optional<Trend> trend(const std::vector<const FailingRegion*>& bins) {
+  if (bins.size() < 3) return std::nullopt;
+  const std::vector<double> v = values(bins);
+  const std::string& q = bins.front()->quantity;
+  std::vector<double> excess;
+  for (const double x : v) excess.push_back(q == "spread" ? std::abs(x - 1.0) : std::abs(x));
+  const auto text = [&](double x) { return q == "bias" ? millimetres(x) : q == "spread" ? ratio_text(x) : percent(x); };
+  const auto peak = std::max_element(excess.begin(), excess.end()) - excess.begin();
+  const auto low = std::min_element(excess.begin(), excess.end()) - excess.begin();
+  const auto last = static_cast<std::ptrdiff_t>(bins.size()) - 1;
+  if (peak != 0 && peak != last) {
+    // Inside: said only when it stands out from both ends (not 7.5 mm among 7.2-7.4 mm).
+    if (excess[static_cast<size_t>(peak)] < 1.5 * std::max(excess.front(), excess.back())) return std::nullopt;
+    const std::string at = "most at " + describe(bins[static_cast<size_t>(peak)]->region);
+    return Trend{at, fmt::format("{} ({})", at, text(v[static_cast<size_t>(peak)]))};
+  }
+  if ((low != 0 && low != last) || excess[static_cast<size_t>(peak)] < 1.5 * excess[static_cast<size_t>(low)]) {
+    return std::nullopt;
+  }
+  const std::string way =
+      fmt::format("{} with {}", peak == last ? "rising" : "falling", feature_noun(bins.front()->region.front().first));
+  return Trend{way, fmt::format("{} from {} at {} to {} at {}", way, text(v.front()), describe(bins.front()->region),
+                                text(v.back()), describe(bins.back()->region))};
+}
+
+// A run of several bins in words, with the spread of their values (or their trend).
 std::string run_sentence(const std::vector<const FailingRegion*>& bins, const std::string& place, size_t pixels) {
   const std::string q = bins.front()->quantity;
-  std::vector<double> measured, predicted, ratio;
+  std::vector<double> measured, predicted;
   for (const FailingRegion* f : bins) {
     measured.push_back(f->measured);
     predicted.push_back(f->predicted);
-    ratio.push_back(q == "bias" ? f->measured - f->predicted : f->predicted > 0 ? f->measured / f->predicted : 0.0);
   }
+  const std::vector<double> ratio = values(bins);
   const auto [rlo, rhi] = std::minmax_element(ratio.begin(), ratio.end());
   const auto [mlo, mhi] = std::minmax_element(measured.begin(), measured.end());
   const auto [plo, phi] = std::minmax_element(predicted.begin(), predicted.end());
   const std::string count = fmt::format("{} bins, {} pixels", bins.size(), pixels);
+  const std::optional<Trend> found = trend(bins);
+  const std::optional<std::string> changes = found ? std::optional<std::string>(found->detail) : std::nullopt;
   if (q == "bias") {
-    return fmt::format("{}: the measured range is {} {} than the model's ({})", place, span(*rlo, *rhi, millimetres),
-                       *rlo > 0 ? "longer" : "shorter", count);
+    const std::string way = *rlo > 0 ? "longer" : "shorter";
+    const std::string by = span(*rlo, *rhi, millimetres);
+    if (changes)
+      return fmt::format("{}: the measured range is {} {} than the model's, {} ({})", place, by, way, *changes, count);
+    return fmt::format("{}: the measured range is {} {} than the model's ({})", place, by, way, count);
   }
-  if (q == "spread") {
-    return fmt::format("{}: the measured spread is {} times the model's ({})", place,
-                       span(*rlo, *rhi, [](double v) { return fmt::format("{:.2g}", v); }), count);
-  }
-  const std::string of = q == "detection" ? "of pixels return" : "of returns lie beyond 5 sigma";
-  return fmt::format("{}: {} {}, the model expects {} ({})", place, span(*mlo, *mhi, percent), of,
-                     span(*plo, *phi, percent), count);
+  const std::string of = q == "spread" ? "" : q == "detection" ? " of pixels return" : " of returns lie beyond 5 sigma";
+  const std::string model = q == "spread" ? "the model's" : "the model expects " + span(*plo, *phi, percent);
+  const std::string what =
+      q == "spread" ? "the measured spread is " + span(*rlo, *rhi, ratio_text) : span(*mlo, *mhi, percent) + of;
+  if (changes)
+    return fmt::format("{}: {}{}, {} ({})", place, what, q == "spread" ? " " + model : ", " + model, *changes, count);
+  return fmt::format("{}: {}{} ({})", place, what, q == "spread" ? " " + model : ", " + model, count);
 }
 
 FailingRun make_run(const std::vector<const FailingRegion*>& bins, const std::vector<std::string>& names) {
@@ -113,18 +176,92 @@ FailingRun make_run(const std::vector<const FailingRegion*>& bins, const std::ve
   run.region.front().second[1] = bins.back()->region.front().second[1];
   run.where = where(run.region, names);
   run.sentence = run_sentence(bins, run.where, run.pixels);
+  if (const std::optional<Trend> t = trend(bins)) run.trend = t->way;
   return run;
 }
+
+// A bin's misfit in one quantity as a signed deviation per pixel: s = ±sqrt(2 KL / n), so that
+// n s^2 / 2 is the bin's misfit (nats) and bins failing the same way have the same sign.
+struct Deviation {
+  double n = 0.0, s = 0.0;
+};
+Deviation deviation(const BinMisfit& b, const std::string& quantity) {
+  double nats = 0.0, n = 0.0;
+  bool above = false;
+  if (quantity == "bias") {
+    nats = b.misfit_bias, n = static_cast<double>(b.inliers), above = b.bias_measured_m > b.bias_predicted_m;
+  } else if (quantity == "spread") {
+    nats = b.misfit_spread, n = static_cast<double>(b.inliers), above = b.spread_ratio > 1.0;
+  } else if (quantity == "detection") {
+    nats = b.misfit_detection, n = static_cast<double>(b.pixels), above = b.detection_measured > b.detection_predicted;
+  } else {
+    nats = b.misfit_outliers, n = static_cast<double>(b.returns), above = b.outliers_measured > b.outliers_predicted;
+  }
+  if (n <= 0.0) return {};
+  const double s = std::sqrt(2.0 * std::max(nats, 0.0) / n);
+  return {n, above ? s : -s};
+}
+
+// Which binning a region belongs to: its features' names ("range", "range+incidence").
+std::string binning(const Region& region) {
+  std::string key;
+  for (const auto& [name, range] : region) key += (key.empty() ? "" : "+") + name;
+  return key;
+}
+
+// How much of a run's misfit its feature explains: its bins' misfit about the deviation the whole
+// binning shows on average (sum n (s - mean s)^2 / 2). A hidden warm-up drift makes every material
+// 7 mm long alike: those runs carry much misfit but explain none of it (each material is as wrong as
+// the rest), where the first time bins, 15 mm long against 1 mm later, do. Bins that fail no
+// differently from the rest of their binning thus come after those that say where the misfit is.
+class Contrast {
+ public:
+  explicit Contrast(const Misfit& misfit) {
+    for (const BinMisfit& b : misfit.bins) {
+      for (const char* q : {"bias", "spread", "detection", "outliers"}) {
+        const Deviation d = deviation(b, q);
+        Pool& pool = pools_[std::string(q) + ":" + binning(b.region)];
+        pool.n += d.n;
+        pool.ns += d.n * d.s;
+        bins_[std::string(q) + ":" + describe(b.region)] = d;
+      }
+    }
+  }
+  // The run's bins (one region, or a merged run's regions).
+  double localized_nats(const std::vector<const FailingRegion*>& regions) const {
+    double nats = 0.0;
+    for (const FailingRegion* f : regions) {
+      const auto bin = bins_.find(f->quantity + ":" + describe(f->region));
+      const auto pool = pools_.find(f->quantity + ":" + binning(f->region));
+      if (bin == bins_.end() || pool == pools_.end() || pool->second.n <= 0.0) continue;
+      const double mean = pool->second.ns / pool->second.n;
+      nats += 0.5 * bin->second.n * (bin->second.s - mean) * (bin->second.s - mean);
+    }
+    return nats;
+  }
+
+ private:
+  struct Pool {
+    double n = 0.0, ns = 0.0;
+  };
+  std::map<std::string, Pool> pools_;
+  std::map<std::string, Deviation> bins_;
+};
 
 }  // namespace
 
 std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std::string>& material_names) {
   // Single-feature regions by quantity, feature and lower edge; pairs stay as they are.
+  const Contrast contrast(misfit);
   std::vector<const FailingRegion*> single;
   std::vector<FailingRun> runs;
+  const auto add = [&](const std::vector<const FailingRegion*>& bins) {
+    runs.push_back(make_run(bins, material_names));
+    runs.back().localized_nats = contrast.localized_nats(bins);
+  };
   for (const FailingRegion& f : misfit.failing) {
     if (f.region.size() == 1) single.push_back(&f);
-    else runs.push_back(make_run({&f}, material_names));
+    else add({&f});
   }
   std::sort(single.begin(), single.end(), [](const FailingRegion* a, const FailingRegion* b) {
     return std::tie(a->quantity, a->region.front().first, a->region.front().second[0]) <
@@ -136,27 +273,14 @@ std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std
                        current.back()->region.front().first == f->region.front().first &&
                        neighbours(*current.back(), *f) && direction(*current.back()) == direction(*f);
     if (!joins && !current.empty()) {
-      runs.push_back(make_run(current, material_names));
+      add(current);
       current.clear();
     }
     current.push_back(f);
   }
-  if (!current.empty()) runs.push_back(make_run(current, material_names));
-  // A run over most of its feature's pixels ("incidence above 0°", every bin failing and merged)
-  // carries the whole capture's misfit but says nothing of where it is: such runs come after those
-  // that localize it, each group by the misfit it explains.
-  std::map<std::string, size_t> feature_pixels;  // what each single feature bins, over its bins
-  for (const BinMisfit& b : misfit.bins) {
-    if (b.region.size() == 1) feature_pixels[b.region.front().first] += b.pixels;
-  }
-  const auto localizes = [&](const FailingRun& run) {
-    if (run.region.size() != 1) return true;
-    const auto all = feature_pixels.find(run.region.front().first);
-    return all == feature_pixels.end() || 2 * run.pixels <= all->second;
-  };
-  std::stable_sort(runs.begin(), runs.end(), [&](const FailingRun& a, const FailingRun& b) {
-    const bool la = localizes(a), lb = localizes(b);
-    return la != lb ? la : a.misfit_nats > b.misfit_nats;
+  if (!current.empty()) add(current);
+  std::stable_sort(runs.begin(), runs.end(), [](const FailingRun& a, const FailingRun& b) {
+    return a.localized_nats != b.localized_nats ? a.localized_nats > b.localized_nats : a.misfit_nats > b.misfit_nats;
   });
   return runs;
 }

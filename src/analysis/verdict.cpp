@@ -25,7 +25,8 @@ std::string quantity_words(const std::string& quantity) {
 }
 
 // The two quantities that carry most of the failing misfit (nats over their failing regions), each
-// with its run of largest misfit: "the spread (worst: range 13–35 m)".
+// with its first run (failing_runs' order) and how it changes: "the range bias (worst: time 0.00–2.00 s,
+// falling with time)".
 std::string where_it_fails(const CompareResult& result) {
   std::map<std::string, double> total;
   std::map<std::string, const FailingRun*> worst;
@@ -41,7 +42,9 @@ std::string where_it_fails(const CompareResult& result) {
   quantities.resize(std::min<size_t>(quantities.size(), 2));
   std::vector<std::string> parts;
   for (const std::string& q : quantities) {
-    parts.push_back(fmt::format("{} (worst: {})", quantity_words(q), worst[q]->where));
+    const FailingRun& run = *worst[q];
+    parts.push_back(
+        fmt::format("{} (worst: {}{})", quantity_words(q), run.where, run.trend.empty() ? "" : ", " + run.trend));
   }
   return joined(parts);
 }

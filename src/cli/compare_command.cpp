@@ -2,6 +2,7 @@
 // report of where the model fails (DIR/report.json, DIR/report.html; with --pixels DIR/pixels.npz).
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -201,11 +202,18 @@ void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::ve
   const std::vector<FailingRun> runs = failing_runs(misfit, material_names);
   std::printf(
       "%zu failing regions at alpha %g (%zu tests, Bonferroni-corrected), %zu after merging neighbouring bins; "
-      "largest misfit first (runs over most of their feature last):\n",
+      "those whose misfit their feature explains most first:\n",
       misfit.failing.size(), flags.alpha, s.tests, runs.size());
   for (size_t i = 0; i < std::min(flags.show, runs.size()); ++i) {
     std::printf("  %2zu. [%s] %s\n", i + 1, runs[i].quantity.c_str(), runs[i].sentence.c_str());
   }
+}
+
+// "divergence_rad = 0.00192, 95 %: 0.00191 .. 0.00193 (robust 0.00185 .. 0.00199)".
+std::string interval_text(const FittedParameter& p) {
+  std::string text = fmt::format("{} = {:.4g}, 95 %: {:.4g} .. {:.4g}", p.name, p.value, p.ci95_lo, p.ci95_hi);
+  if (!std::isnan(p.robust_lo)) text += fmt::format(" (robust {:.4g} .. {:.4g})", p.robust_lo, p.robust_hi);
+  return text;
 }
 
 void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command) {
@@ -228,10 +236,14 @@ void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command
                 c.p_value, params.c_str());
   }
   for (const Replacement& r : diagnosis.replace) std::printf("  replace: %s\n", r.sentence.c_str());
-  for (const Candidate& c : diagnosis.selected) std::printf("  selected: %s\n", c.effect.c_str());
+  for (const Candidate& c : diagnosis.selected) {
+    std::printf("  selected: %s\n", c.effect.c_str());
+    for (const FittedParameter& p : c.params) std::printf("    %s\n", interval_text(p).c_str());
+  }
   for (const SharedMisfit& shared : diagnosis.shared) std::printf("  %s\n", shared.sentence.c_str());
   for (const NotSelected& n : diagnosis.not_selected) std::printf("  %s\n", n.sentence.c_str());
   for (const UnexplainedMisfit& u : diagnosis.unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
+  if (!diagnosis.intervals_caveat.empty()) std::printf("  %s\n", diagnosis.intervals_caveat.c_str());
   if (!next_command.empty()) std::printf("  next: %s\n", next_command.c_str());
 }
 

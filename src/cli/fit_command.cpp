@@ -3,6 +3,7 @@
 // likelihood on it (the diagnosis' fits), written as a profile file that record, serve and compare
 // read as they are. The fitted values and their 95 % intervals go into the profile's "fit"
 // section, next to the effects.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -41,7 +42,10 @@ struct FitFlags {
 // A fitted effect in the "fit" section: its delta BIC, p-value (where nested) and parameters.
 nlohmann::json note(const Candidate& c) {
   nlohmann::json params = nlohmann::json::object();
-  for (const FittedParameter& p : c.params) params[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+  for (const FittedParameter& p : c.params) {
+    params[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
+    if (!std::isnan(p.robust_lo)) params[p.name]["ci95_robust"] = {p.robust_lo, p.robust_hi};
+  }
   return {{"effect", c.effect},
           {"catalogue", c.catalogue},
           {"delta_bic", c.delta_bic},
@@ -157,7 +161,9 @@ void print_fit(const Candidate& c, const std::string& replaces) {
                 c.delta_bic);
   }
   for (const FittedParameter& p : c.params) {
-    std::printf("  %s = %.6g  (95 %%: %.6g .. %.6g)\n", p.name.c_str(), p.value, p.ci95_lo, p.ci95_hi);
+    std::printf("  %s = %.6g  (95 %%: %.6g .. %.6g", p.name.c_str(), p.value, p.ci95_lo, p.ci95_hi);
+    if (!std::isnan(p.robust_lo)) std::printf("; robust %.6g .. %.6g", p.robust_lo, p.robust_hi);
+    std::printf(")\n");
   }
 }
 

@@ -21,16 +21,21 @@ inline constexpr const char* kCompareReportSchema = "lidartwin.compare/1";
 
 // A failing region as the report leads with it (report.json's "failing_runs"): neighbouring bins
 // of one feature that fail in the same quantity the same way merged into one run ("beams 40–44"),
-// runs ranked by the misfit they explain (nats in total, not per pixel, so a broad failure outranks
-// a narrow bin), materials named as the scene names them.
+// runs ranked by the misfit their feature explains (in total, not per pixel, so a broad failure
+// outranks a narrow bin; and about the rest of the feature, so that a misfit every bin shares
+// alike, as every material does a drift's, does not name a bin first), materials named as the
+// scene names them.
 struct FailingRun {
   std::string quantity;
   Region region;  // the run's span
   size_t bins = 1;
   size_t pixels = 0;
   double misfit_nats = 0.0;
-  double p_value = 1.0;  // its bins' smallest (corrected)
-  std::string where;     // "beams 40–44", "material wall_grey (48)"
+  double localized_nats = 0.0;  // its bins' misfit about their binning's mean deviation (failing_runs.cpp)
+  double p_value = 1.0;         // its bins' smallest (corrected)
+  std::string where;            // "beams 40–44", "material wall_grey (48)"
+  std::string trend;            // how a run of 3 or more bins changes along them: "falling with time", "most at
+                                // range 13–20 m"; empty when it does not, or not clearly
   std::string sentence;
 };
 // material_names: by material id; empty or "" where the scene names none.

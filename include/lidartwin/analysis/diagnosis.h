@@ -7,6 +7,7 @@
 // profile's range noise law may instead have the wrong form: laws of the other forms are tried in
 // its place in the same rounds, and compared with the added effects by BIC.
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -21,10 +22,17 @@ namespace lidartwin {
 
 class WorkerPool;  // lidartwin/frame/worker_pool.h
 
+// A fitted value with two 95 % intervals. ci95: from the observed information (the NLL's curvature),
+// right when the model is right and pixels are independent. robust: the sandwich H^-1 J H^-1, J the
+// score's covariance the data show over blocks of neighbouring pixels; it widens where the model's
+// spread is wrong or neighbouring pixels share their noise. Neither allows for the rest of the model
+// being wrong: a value fitted beside a wrong noise law can lie outside both (Diagnosis::
+// intervals_caveat). NaN where not computed (E10's closed form).
 struct FittedParameter {
   std::string name;
   double value = 0.0;
-  double ci95_lo = 0.0, ci95_hi = 0.0;  // from the observed information (curvature of the NLL)
+  double ci95_lo = 0.0, ci95_hi = 0.0;
+  double robust_lo = std::numeric_limits<double>::quiet_NaN(), robust_hi = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct Candidate {
@@ -104,6 +112,12 @@ struct Diagnosis {
   std::vector<SharedMisfit> shared;
   // What still fails with the selected effects added, and the features it follows.
   std::vector<UnexplainedMisfit> unexplained;
+  // What the fitted chain still fails: regions at alpha, and the NLL's excess in standard errors.
+  size_t remaining_failing = 0;
+  double remaining_excess_se = 0.0;
+  // Said when something was fitted and misfit remains: the intervals hold given the rest of the
+  // model, which is then wrong somewhere, and a fitted value can lie outside them (FittedParameter).
+  std::string intervals_caveat;
   size_t pixels = 0;     // pixels the fits used
   EffectChain refitted;  // the profile's chain with the refits (neither replaced nor selected applied)
   EffectChain fitted;    // with the replacements and the selected effects too, jointly refitted
