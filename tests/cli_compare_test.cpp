@@ -627,6 +627,7 @@ TEST_F(Compare, TheDiagnosisNamesAHiddenSignalDropoutAndFitsIt) {
   const auto& width = diagnosis["selected"][0]["params"]["width"];
   EXPECT_NE(dom.find(fmt_param("width", width)), std::string::npos) << dom.substr(diagnosis_at, 3000);
   EXPECT_NE(dom.find("<td>dropout (E5)</td>"), std::string::npos) << dom.substr(diagnosis_at, 3000);
+  EXPECT_EQ(dom.find("No library effect is selected"), std::string::npos) << dom.substr(diagnosis_at, 3000);
   EXPECT_NE(dom.find("<pre class=\"next-command\">" + next + "</pre>"), std::string::npos)
       << dom.substr(diagnosis_at, 3000);
   EXPECT_NE(dom.find("unexplained"), std::string::npos) << dom.substr(diagnosis_at, 3000);
@@ -835,6 +836,34 @@ TEST_F(Compare, TheDiagnosisFindsNothingMissingWhenNothingIs) {
   EXPECT_TRUE(diagnosis["selected"].empty());
   EXPECT_EQ(diagnosis["ranked"].size(), 8u);  // E2-E6, E8, E10, E12: the fittable effects os1-64 lacks
   for (const auto& c : diagnosis["ranked"]) EXPECT_LT(c["delta_bic"].get<double>(), 0.0) << c.dump();
+}
+
+// A disk that fills while compare writes (issue 27; RLIMIT_FSIZE of 4 MB stands in for it, with
+// SIGXFSZ ignored so that the write fails as on a full disk): a clear error naming the file, and no
+// torn output: no report.json (written last, so its presence means a complete set), no pixels.npz
+// cut short, no temporary left behind. The same directory then takes a complete run.
+TEST_F(Compare, AFullDiskLeavesNoTornOutputAndSaysWhichFile) {
+  const fs::path dir = out("full_disk");
+  const std::string compare = std::string(LIDARTWIN_BINARY) + " compare --capture " + hall_.string() + " --scene " +
+                              kHall + " --profile " + os1_64() + " --no-plots --out " + dir.string();
+  const fs::path err = dir.string() + ".err";
+  const int status = std::system(
+      ("bash -c 'trap \"\" XFSZ; ulimit -f 4096; exec " + compare + " --pixels' >/dev/null 2>" + err.string()).c_str());
+  ASSERT_TRUE(WIFEXITED(status)) << "killed, not refused";
+  EXPECT_NE(WEXITSTATUS(status), 0);
+  const std::string message = slurp(err);
+  fs::remove(err);
+  EXPECT_NE(message.find((dir / "pixels.npz").string() + ": write failed (disk full?)"), std::string::npos) << message;
+  EXPECT_EQ(message.find(".partial"), std::string::npos) << message;
+  std::vector<std::string> left;
+  for (const auto& file : fs::directory_iterator(dir)) left.push_back(file.path().filename().string());
+  EXPECT_TRUE(left.empty()) << left.front();
+  const CliRun again = lidartwin(compare.substr(compare.find("compare")));
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_TRUE(fs::exists(dir / "report.json"));
+  for (const auto& file : fs::directory_iterator(dir)) {
+    EXPECT_EQ(file.path().filename().string().find(".partial"), std::string::npos) << file.path();
+  }
 }
 
 TEST_F(Compare, ACaptureOfAnotherModeThanItsMetadataIsRefused) {

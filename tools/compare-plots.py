@@ -9,6 +9,7 @@ schema: docs/compare-report.md), pixels.npz is not needed.
 """
 import base64
 import html
+import os
 import io
 import json
 import math
@@ -265,11 +266,11 @@ def diagnosis_section(report):
     if rows:
         parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC</th>"
                      "<th>fitted value [95 %% interval] (robust interval)</th></tr>%s</table>" % rows)
+    else:
+        parts.append("<p>No library effect is selected.</p>")
     if d.get("intervals_caveat"):
         parts.append("<p class=\"intervals-caveat\"><b>About the intervals:</b> %s</p>"
                      % html.escape(d["intervals_caveat"]))
-    else:
-        parts.append("<p>No library effect is selected.</p>")
     items = ["replace: " + r["sentence"] for r in d["replace"]]
     for m in d["parameter_misfit"]:
         changes = ", ".join("%s %s → %s" % (name, number(m["old"].get(name, 0.0)), number(p["value"]))
@@ -343,7 +344,14 @@ def main():
         sys.exit(__doc__)
     directory = Path(sys.argv[1])
     report = json.loads((directory / "report.json").read_text())
-    (directory / "report.html").write_text(page(report), encoding="utf-8")
+    # Whole or not at all: under a temporary name, then renamed (a full disk leaves no torn page).
+    partial = directory / ("report.html.partial.%d" % os.getpid())
+    try:
+        partial.write_text(page(report), encoding="utf-8")
+        os.replace(partial, directory / "report.html")
+    finally:
+        if partial.exists():
+            partial.unlink()
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "cli/atomic_output.h"
 #include "cli/command.h"
 #include "cli/plot_script.h"
 #include "lidartwin/error.h"
@@ -71,7 +72,12 @@ int run_ape(const ApeFlags& flags) {
        {{"translation_m", {t.x(), t.y(), t.z()}}, {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
       {"times_s", r.times_s},
       {"errors_m", r.errors_m}};
-  std::ofstream(fs::path(flags.out) / "ape.json") << json.dump(2) << "\n";
+  write_atomically(fs::path(flags.out) / "ape.json", [&](const fs::path& file) {
+    std::ofstream out(file);
+    out << json.dump(2) << "\n";
+    out.close();
+    if (!out) throw InputError((fs::path(flags.out) / "ape.json").string() + ": write failed (disk full?)");
+  });
   std::printf("wrote %s; %s\n", (fs::path(flags.out) / "ape.json").c_str(),
               run_plot_script("ape-plot.py", flags.out, "ape.png").c_str());
   return 0;

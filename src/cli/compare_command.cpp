@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include "cli/atomic_output.h"
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
 #include "cli/plot_script.h"
@@ -47,7 +48,8 @@ struct CompareFlags {
 void write_json(const fs::path& path, const nlohmann::json& json) {
   std::ofstream out(path);
   out << json.dump(2) << "\n";
-  if (!out) throw InputError(path.string() + ": write failed");
+  out.close();
+  if (!out) throw InputError(path.string() + ": write failed (disk full?)");
 }
 
 // The profiles to compare, each with its chain (a unit's metadata: its twin's chain).
@@ -109,18 +111,26 @@ Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, cons
 
 // DIR/report.json, with --pixels DIR/pixels.npz (117 bytes a pixel: 380 MB for 50 frames of
 // 64 x 1024) and, for registered frames, DIR/registered_poses.tum.
+// Each output is written whole or not at all (write_atomically), report.json last: an earlier run's
+// outputs are removed first (they describe another comparison), so a directory with a report.json
+// holds a complete set, and one without it a run that failed (the error names the file).
 void write_outputs(const CompareFlags& flags, const CompareResult& result, const Scored& scored, Steps& steps) {
-  fs::create_directories(flags.out);
-  fs::remove(fs::path(flags.out) / "pixels.npz");  // an earlier run's, which this report does not describe
-  write_json(fs::path(flags.out) / "report.json", report_json(result));
+  const fs::path out(flags.out);
+  fs::create_directories(out);
+  for (const char* earlier : {"report.json", "report.html", "pixels.npz", "registered_poses.tum"}) {
+    fs::remove(out / earlier);
+  }
   if (flags.pixels) {
     steps.start("writing pixels.npz");
-    write_pixels_npz(fs::path(flags.out) / "pixels.npz", *scored.table, scored.scores);
+    write_atomically(out / "pixels.npz",
+                     [&](const fs::path& file) { write_pixels_npz(file, *scored.table, scored.scores); });
     steps.done();
   }
   if (result.inputs.registration) {
-    result.inputs.registration->trajectory.save_tum(fs::path(flags.out) / "registered_poses.tum");
+    write_atomically(out / "registered_poses.tum",
+                     [&](const fs::path& file) { result.inputs.registration->trajectory.save_tum(file); });
   }
+  write_atomically(out / "report.json", [&](const fs::path& file) { write_json(file, report_json(result)); });
 }
 
 // An argument as a POSIX shell reads it back: quoted where it holds anything but safe characters.

@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include "cli/atomic_output.h"
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
 #include "cli/unit_twin.h"
@@ -195,11 +196,15 @@ int run_fit(const FitFlags& flags) {
                  measured.table.size());
   document["fit"] = fit_notes(fitted, measured, measured.table.size());
   if (fs::path(flags.out).has_parent_path()) fs::create_directories(fs::path(flags.out).parent_path());
-  std::ofstream out(flags.out);
-  out << document.dump(2) << "\n";
-  if (!out) throw InputError("--out " + flags.out + ": write failed");
-  out.close();
-  load_profile(flags.out);  // what was written reads back as a profile
+  // Whole or not at all, and only once it reads back as a profile: --out may name the profile the
+  // fit started from, which a failed write must not destroy.
+  write_atomically(flags.out, [&](const fs::path& file) {
+    std::ofstream out(file);
+    out << document.dump(2) << "\n";
+    out.close();
+    if (!out) throw InputError("--out " + flags.out + ": write failed (disk full?)");
+    load_profile(fs::absolute(file).string());  // a path, whatever its name ends with
+  });
   if (fitted.added.empty() && fitted.replaced.empty() && flags.automatic) {
     std::printf("no effect added or replaced: none improves BIC significantly (--auto)\n");
   }
