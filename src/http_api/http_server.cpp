@@ -84,6 +84,7 @@ struct HttpServer::Impl {
   std::thread thread;
   std::atomic<bool> listen_returned{false};
   int port = -1;
+  int listening_socket = -1;  // the last socket httplib made (the one bound, once bind succeeds)
 };
 
 void HttpServer::Impl::handle(const httplib::Request& request, httplib::Response& response, std::string body) {
@@ -130,9 +131,10 @@ void HttpServer::Impl::configure() {
 void HttpServer::Impl::configure_connections() {
   // httplib's default sets SO_REUSEPORT, which lets a second daemon bind the same port and take
   // half of the connections; SO_REUSEADDR alone allows a quick restart and refuses a duplicate.
-  server.set_socket_options([](int sock) {
+  server.set_socket_options([this](int sock) {
     const int yes = 1;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+    listening_socket = sock;
   });
   // Headers and body go out in separate writes: without TCP_NODELAY the body waits for the
   // client's delayed ACK (40 ms per response on Linux).
@@ -166,6 +168,10 @@ void HttpServer::start() {
     const int error_number = bind_errno(address, requested);
     throw BindError(describe_bind_error(address, requested, error_number), error_number);
   }
+  // httplib (Debian's 0.11) listens with a backlog of 5: a burst of connections overflowed it, and
+  // every sixth connect of a loop waited a second for its SYN to be sent again. Linux takes a new
+  // backlog when listen() is called again on a listening socket.
+  ::listen(impl.listening_socket, SOMAXCONN);
   impl.thread = std::thread([&impl] {
     impl.server.listen_after_bind();
     impl.listen_returned = true;

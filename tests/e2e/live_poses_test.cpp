@@ -270,8 +270,9 @@ TEST(LivePosesHttp, ADaemonFlyingATrajectoryHasNoPoseEndpoint) {
   EXPECT_EQ(http.raw_post("/lidartwin/v1/pose", pose_json(1, 1).dump())->status, 404);
 }
 
-// Timeout policy "standby": no lidar packet goes out until poses come, and none once they stop.
-TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
+// Timeout policy "standby": no lidar packet goes out until poses come, none once they stop, and
+// complete scans again once they resume.
+TEST(LivePosesTimeout, StandbySendsNothingWithoutPosesAndResumesWithThem) {
   Daemon daemon("127.0.0.1", 0,
                 {"--profile", "os1-32", "--scene", empty_room_scene().string(), "--threads", "1", "--pose-udp",
                  "127.0.0.1:0", "--pose-clock", "monotonic", "--pose-timeout", "standby", "--pose-extrapolate-ms",
@@ -298,6 +299,18 @@ TEST(LivePosesTimeout, StandbySendsNothingWithoutPoses) {
   const json status = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
   EXPECT_GT(status["withheld_packets"].get<int>(), 0) << status.dump(2);
   EXPECT_TRUE(status["stalled"].get<bool>());
+  {
+    // The pose source resumes (issue 27: stalls and resumes): so do complete scans, and the stall
+    // is over.
+    RigThread rig(pose_udp_port(daemon.log()), Turn{monotonic_ns()}, false);
+    ScanBatcher batcher(metadata.format);
+    const auto scans = receive_scans(lidar, batcher, 3, std::chrono::seconds(10));
+    ASSERT_EQ(scans.size(), 3u);
+    for (size_t k = 1; k < scans.size(); ++k) EXPECT_TRUE(scans[k].complete) << scans[k].packets << " packets";
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+    const json resumed = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
+    EXPECT_FALSE(resumed["stalled"].get<bool>()) << resumed.dump(2);
+  }
   client.reset();  // closes the keep-alive connection, so the daemon stops at once
   EXPECT_EQ(daemon.stop(), 0);
   EXPECT_NE(daemon.log().find("live poses: stream stalled"), std::string::npos) << daemon.log();
