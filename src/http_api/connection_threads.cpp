@@ -3,7 +3,13 @@
 #include <thread>
 #include <utility>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 namespace lidartwin::http_detail {
+namespace {
+constexpr int kNice = 10;
+}  // namespace
 
 ConnectionThreads::ConnectionThreads(std::size_t max_threads, std::chrono::milliseconds idle_exit)
     : max_threads_(max_threads == 0 ? 1 : max_threads), idle_exit_(idle_exit) {}
@@ -25,6 +31,10 @@ void ConnectionThreads::enqueue(std::function<void()> connection) {
 }
 
 void ConnectionThreads::serve() {
+  // Below the stream: a sensor's lidar data comes before its web server. At equal priority, 50
+  // keep-alive clients asking for the metadata left 85 % of an OS1-128 2048x10 stream's packets
+  // un-rendered on two cores; at nice 10 a busy HTTP thread gets a tenth of a rendering one's share.
+  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), kNice);
   std::unique_lock lock(mutex_);
   for (;;) {
     ++idle_;
