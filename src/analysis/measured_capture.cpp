@@ -72,6 +72,7 @@ MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::files
   }
   keep(batcher.flush());
   capture.counts = batcher.counts();
+  capture.cut_short_record = reader.stats().cut_short_record;
   if (capture.frames.empty() && capture.skipped_frames > 0 && capture.skipped_frames == skip_frames) {
     throw InputError(fmt::format("--capture {}: --skip-frames {} leaves no frame (the capture has {})", pcap.string(),
                                  skip_frames, capture.skipped_frames));

@@ -244,6 +244,12 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
     std::fprintf(stderr, "note: %s holds no %s field; those channels are left zero\n", in.capture.string().c_str(),
                  fmt::format("{}", fmt::join(out.capture.missing_fields, ", ")).c_str());
   }
+  if (out.capture.cut_short_record > 0) {
+    std::fprintf(stderr,
+                 "note: %s ends inside record %zu (a capture cut short while written); the frames before it are "
+                 "read, and a frame it cuts is as complete as its packets\n",
+                 in.capture.string().c_str(), out.capture.cut_short_record);
+  }
   if (out.capture.lidar_streams > 1) {
     std::fprintf(stderr, "note: %s holds %zu lidar sensors; reading the first\n", in.capture.string().c_str(),
                  out.capture.lidar_streams);

@@ -26,8 +26,12 @@ void print_datagrams(const std::string& capture, const std::vector<UdpDatagram>&
             << ", cut by snaplen: " << stats.truncated_frames << ")\n"
             << "udp datagrams: " << datagrams.size()
             << " (incomplete fragment sets dropped: " << stats.incomplete_datagrams
-            << ", conflicting: " << stats.conflicting_datagrams << ")\n"
-            << "datagrams by destination port and size:\n";
+            << ", conflicting: " << stats.conflicting_datagrams << ")\n";
+  if (stats.cut_short_record > 0) {
+    std::cout << "cut short: the file ends inside record " << stats.cut_short_record << " (a capture interrupted "
+              << "while written); the " << stats.records << " records before it were read\n";
+  }
+  std::cout << "datagrams by destination port and size:\n";
   for (const auto& [port_size, count] : count_datagrams(datagrams)) {
     std::printf("  port %5u  %6zu bytes  x %zu\n", port_size.first, port_size.second, count);
   }

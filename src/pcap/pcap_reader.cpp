@@ -1,5 +1,6 @@
 // Reading captures with libpcap: frames -> IPv4 (reassembled) -> UDP datagrams.
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include <pcap/pcap.h>
@@ -69,7 +70,13 @@ std::optional<UdpDatagram> PcapReader::next() {
     const u_char* bytes = nullptr;
     impl.record_number = impl.stats.records + 1;
     const int status = pcap_next_ex(impl.handle, &header, &bytes);
-    if (status == PCAP_ERROR_BREAK) {  // end of file
+    // A file cut short inside its last record (libpcap: "truncated dump file; tried to read ...")
+    // ends there: what came before is whole, and a recording interrupted by a full disk or a kill
+    // stays readable.
+    const bool cut_short =
+        status == PCAP_ERROR && std::string_view(pcap_geterr(impl.handle)).starts_with("truncated dump file");
+    if (cut_short) impl.stats.cut_short_record = impl.record_number;
+    if (status == PCAP_ERROR_BREAK || cut_short) {  // end of file
       impl.reassembler.finish();
       impl.stats.incomplete_datagrams = impl.reassembler.incomplete();
       impl.stats.conflicting_datagrams = impl.reassembler.conflicting();

@@ -22,6 +22,7 @@ struct MeasuredCapture {
   // Channels of the metadata's profile that an OSF file does not hold (saved with a field list),
   // left zero: "SIGNAL", "NEAR_IR"...
   std::vector<std::string> missing_fields;
+  size_t cut_short_record = 0;  // a pcap that ends inside this record (PcapStats); 0: whole
 };
 
 // Reads up to max_frames frames (0: all) of a pcap, or of an OSF recording (ouster-cli's; told by

@@ -44,13 +44,18 @@ struct PcapStats {
   size_t truncated_frames = 0;       // frames cut short by the capture's snaplen, skipped
   size_t incomplete_datagrams = 0;   // fragment sets that never completed, dropped
   size_t conflicting_datagrams = 0;  // fragment sets with overlapping, disagreeing bytes, dropped
+  // The file ends inside its last record (a capture cut short: a full disk, a recorder killed):
+  // that record's number (1-based); the records before it were read. 0: the file ends whole.
+  size_t cut_short_record = 0;
   friend bool operator==(const PcapStats&, const PcapStats&) = default;
 };
 
 // Reads a capture one UDP datagram at a time, reassembling IPv4 fragments, so a capture larger
 // than memory can be processed. Link types: Ethernet (with 802.1Q tags), Linux cooked (SLL and
-// SLL2) and raw IP. Throws InputError naming the file and the problem (not a pcap, truncated
-// record, bad IP or UDP header, unsupported link type); never crashes on hostile input.
+// SLL2) and raw IP. A file that ends inside its last record ends there, as libpcap's readers and
+// the Ouster SDK's end (PcapStats::cut_short_record says so). Throws InputError naming the file and
+// the problem (not a pcap, bad record length, bad IP or UDP header, unsupported link type); never
+// crashes on hostile input.
 class PcapReader {
  public:
   explicit PcapReader(const std::filesystem::path& path);
