@@ -49,8 +49,20 @@ bool UdpSender::send(Ipv4 destination, uint16_t port, std::span<const uint8_t> d
   return true;
 }
 
+// A recording that fails (the disk filled) ends there, and the stream goes on: a HIL rig's sensor
+// must not die because its capture could not be kept. What was written stays readable (a pcap
+// reader ends at a record cut short).
 void UdpSender::record(Ipv4 destination, uint16_t port, std::span<const uint8_t> datagram) {
-  recorder_->write(UdpDatagramView{wall_clock_ns(), source_, destination, source_port_, port, datagram});
+  try {
+    recorder_->write(UdpDatagramView{wall_clock_ns(), source_, destination, source_port_, port, datagram});
+  } catch (const InputError& e) {
+    spdlog::error("streamer: --record: {}; recording stopped, streaming goes on", e.what());
+    try {
+      recorder_->close();
+    } catch (const InputError&) {  // the same failure, said once
+    }
+    recorder_.reset();
+  }
 }
 
 void UdpSender::close() {
