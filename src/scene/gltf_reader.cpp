@@ -109,7 +109,7 @@ class Flattener {
   static std::vector<float> place(const std::vector<float>& positions, const Eigen::Matrix4d& world_from_mesh) {
     std::vector<float> out(positions.size());
     for (size_t i = 0; i + 2 < positions.size(); i += 3) {
-      const Eigen::Vector4d p(positions[i], positions[i + 1], positions[i + 2], 1.0);
+      const Eigen::Vector4d p(Eigen::Vector4f(positions[i], positions[i + 1], positions[i + 2], 1.0f).cast<double>());
       const Eigen::Vector4d w = world_from_mesh * p;
       for (size_t k = 0; k < 3; ++k) out[i + k] = static_cast<float>(w[static_cast<Eigen::Index>(k)]);
     }

@@ -120,8 +120,8 @@ size_t Scene::geometry_count() const { return impl_->material_of_geometry.size()
 Eigen::AlignedBox3d Scene::bounds() const {
   RTCBounds b;
   rtcGetSceneBounds(impl_->scene, &b);
-  return Eigen::AlignedBox3d(Eigen::Vector3d(b.lower_x, b.lower_y, b.lower_z),
-                             Eigen::Vector3d(b.upper_x, b.upper_y, b.upper_z));
+  return Eigen::AlignedBox3d(Eigen::Vector3f(b.lower_x, b.lower_y, b.lower_z).cast<double>(),
+                             Eigen::Vector3f(b.upper_x, b.upper_y, b.upper_z).cast<double>());
 }
 
 }  // namespace lidartwin
