@@ -1,7 +1,9 @@
 # One instruction set for every translation unit: the compiler's default (baseline x86-64 with
 # Debian's GCC, ARMv8-A on arm64), so one binary or image runs on any CPU of its architecture.
-# No module gets its own -march: per-pixel loops that want wider SIMD must pick it at run time
-# (DESIGN.md: Highway's dynamic dispatch), each target compiled inside its own function attributes.
+# No module gets its own -march: the per-pixel loops that want wider SIMD are Highway kernels
+# (src/*/*_kernels.cpp), compiled once per target (SSSE3, SSE4, AVX2, AVX-512; NEON and SVE on
+# arm64) inside that target's function attributes, the CPU's best chosen at run time.
+# tests/simd_targets_test.cpp records the same captures under each target and compares the bytes.
 #
 # Why not some modules for x86-64-v3, as before: Eigen aligns its fixed-size types to the widest
 # vector the translation unit may use (Quaterniond to 32 bytes with AVX, 16 without), so Pose and

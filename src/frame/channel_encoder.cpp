@@ -5,39 +5,25 @@
 #include <cstdint>
 #include <vector>
 
+#include "frame/channel_kernels.h"
+
 namespace lidartwin::frame_detail {
 namespace {
 
 // range_mm = round(range_m * 1000) to the field's step; 0 means no return, and so does a range
 // the field cannot hold (a clamped range would be a false point at the field's end). Values stay
-// below 2^20, so the conversion goes through int32 (one instruction, vectorizable).
+// below 2^20, so the conversion goes through int32 (one instruction, vectorized).
 template <std::vector<float> MeasuredColumn::*Member>
 void write_range(const ChannelLimits& c, const MeasuredColumn& measured, std::span<uint32_t> out) {
-  const float to_steps = c.scale / c.step;
-  const float lowest = 0.5f;
-  const float highest = c.max / c.step + 0.5f;
-  const auto step = static_cast<int32_t>(c.step);
-  const float* values = (measured.*Member).data();
-  for (size_t r = 0; r < out.size(); ++r) {
-    const float steps = values[r] * to_steps;
-    const bool representable = steps >= lowest && steps < highest;  // false for NaN
-    out[r] = static_cast<uint32_t>(representable ? static_cast<int32_t>(steps + 0.5f) * step : 0);
-  }
+  range_steps((measured.*Member).data(), out.size(), c.scale / c.step, 0.5f, c.max / c.step + 0.5f,
+              static_cast<int32_t>(c.step), out.data());
 }
 
 // Signal, near-IR and reflectivity saturate at their field's maximum; negative or NaN gives 0.
 template <std::vector<float> MeasuredColumn::*Member>
 void write_clamped(const ChannelLimits& c, const MeasuredColumn& measured, std::span<uint32_t> out) {
-  const float inverse_step = 1.0f / c.step;
-  const float highest = c.max / c.step;
-  const auto step = static_cast<int32_t>(c.step);
-  const float* values = (measured.*Member).data();
-  for (size_t r = 0; r < out.size(); ++r) {
-    float steps = values[r] * inverse_step;
-    steps = steps > 0.0f ? steps : 0.0f;
-    steps = steps < highest ? steps : highest;
-    out[r] = static_cast<uint32_t>(static_cast<int32_t>(steps + 0.5f) * step);
-  }
+  clamped_steps((measured.*Member).data(), out.size(), 1.0f / c.step, c.max / c.step, static_cast<int32_t>(c.step),
+                out.data());
 }
 
 struct Source {

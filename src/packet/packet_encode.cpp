@@ -6,6 +6,7 @@
 
 #include "packet/footer.h"
 #include "packet/packet_format_impl.h"
+#include "packet/pixel_kernels.h"
 
 namespace lidartwin {
 namespace {
@@ -45,31 +46,30 @@ WordLane word_lane(const packet_detail::FieldCodec& codec) {
 }
 
 // One column's pixels are assembled as planes, one per 32-bit word of the pixel: each channel is
-// one contiguous pass over its rows into its plane (vectorized, four or more rows per
-// instruction), then one pass interleaves the planes into pixels and a single copy writes them.
-// Read-modify-write of the packet's own bytes would instead stall store forwarding on
-// overlapping words, and 64-bit words would halve the lanes.
-template <size_t kPixelBytes>
+// one contiguous pass over its rows into its plane (vectorized: pixel_kernels.h), then one pass
+// interleaves the planes into pixels and a single copy writes them. Read-modify-write of the
+// packet's own bytes would instead stall store forwarding on overlapping words, and 64-bit words
+// would halve the lanes.
 void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& values, uint8_t* pixels) {
-  static_assert(kPixelBytes % 4 == 0);
-  constexpr size_t kWords = kPixelBytes / 4;
+  assert(impl.pixel_bytes % 4 == 0 && impl.pixel_bytes / 4 <= packet_detail::kMaxPixelWords);
+  const size_t words = impl.pixel_bytes / 4;
   const auto height = static_cast<size_t>(impl.format.pixels_per_column);
-  alignas(64) uint32_t planes[kWords][kMaxPixelsPerColumn];
-  for (auto& plane : planes) std::fill_n(plane, height, 0u);
+  alignas(64) uint32_t planes[packet_detail::kMaxPixelWords][kMaxPixelsPerColumn];
+  for (size_t w = 0; w < words; ++w) std::fill_n(planes[w], height, 0u);
   for (size_t k = 0; k < impl.channels.size(); ++k) {
     const WordLane lane = word_lane(impl.channels[k].codec);
-    const uint32_t* __restrict v = values[k];
-    uint32_t* __restrict plane = planes[lane.word];
+#ifndef NDEBUG
     for (size_t row = 0; row < height; ++row) {
-      assert(impl.channels[k].codec.fits(v[row]) && "channel value wider than its packet field");
-      plane[row] |= ((v[row] >> lane.down) << lane.up) & lane.mask;
+      assert(impl.channels[k].codec.fits(values[k][row]) && "channel value wider than its packet field");
     }
+#endif
+    packet_detail::or_into_plane(values[k], height, lane.down, lane.up, lane.mask, planes[lane.word]);
   }
-  alignas(64) uint32_t interleaved[kMaxPixelsPerColumn * kWords];
-  for (size_t row = 0; row < height; ++row) {
-    for (size_t w = 0; w < kWords; ++w) interleaved[row * kWords + w] = planes[w][row];
-  }
-  std::memcpy(pixels, interleaved, height * kPixelBytes);
+  const uint32_t* plane_rows[packet_detail::kMaxPixelWords];
+  for (size_t w = 0; w < words; ++w) plane_rows[w] = planes[w];
+  alignas(64) uint32_t interleaved[kMaxPixelsPerColumn * packet_detail::kMaxPixelWords];
+  packet_detail::interleave_planes(plane_rows, words, height, interleaved);
+  std::memcpy(pixels, interleaved, height * impl.pixel_bytes);
 }
 
 void encode_pixels(const packet_detail::FormatCodecs& impl, const Scan& scan, int index, int m,
@@ -81,15 +81,7 @@ void encode_pixels(const packet_detail::FormatCodecs& impl, const Scan& scan, in
   }
   uint8_t* pixels = out.data() + impl.pixel_start(index, 0);
   assert(impl.pixel_start(index, impl.format.pixels_per_column) <= out.size());
-  switch (impl.pixel_bytes) {
-    case 4: return encode_rows<4>(impl, values, pixels);
-    case 8: return encode_rows<8>(impl, values, pixels);
-    case 12: return encode_rows<12>(impl, values, pixels);
-    case 16: return encode_rows<16>(impl, values, pixels);
-    case 20: return encode_rows<20>(impl, values, pixels);
-    case 24: return encode_rows<24>(impl, values, pixels);
-    default: assert(false && "pixel size missing from the dispatch");
-  }
+  encode_rows(impl, values, pixels);
 }
 
 void encode_column(const packet_detail::FormatCodecs& impl, const PacketHeader& header, const Scan& scan, int index,
