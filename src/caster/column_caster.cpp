@@ -48,14 +48,8 @@ struct LaneTransforms {
 // Sensor-frame rays into the world (protocol doc 7.2: the SDK's rays, moved by the pose of their
 // column's time). Directions add a zero translation, as origins add theirs.
 void transform_lanes(const RayStrip& rays, const LaneTransforms& w, RTCRay16& ray) {
-  using caster_detail::affine_lanes;
-  alignas(64) static constexpr float kZero[kLanes] = {};
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[0], w.r[1], w.r[2], w.t[0], ray.org_x);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[3], w.r[4], w.r[5], w.t[1], ray.org_y);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[6], w.r[7], w.r[8], w.t[2], ray.org_z);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[0], w.r[1], w.r[2], kZero, ray.dir_x);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[3], w.r[4], w.r[5], kZero, ray.dir_y);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[6], w.r[7], w.r[8], kZero, ray.dir_z);
+  caster_detail::transform_lanes({{rays.org_x, rays.org_y, rays.org_z}, {rays.dir_x, rays.dir_y, rays.dir_z}}, w.r, w.t,
+                                 {{ray.org_x, ray.org_y, ray.org_z}, {ray.dir_x, ray.dir_y, ray.dir_z}});
 }
 
 // The fields every lane shares; tnear starts each ray at the physical beam origin.

@@ -18,14 +18,21 @@ namespace hn = hwy::HWY_NAMESPACE;
 // At most 16 lanes a vector, so a packet's 16 lanes are whole vectors on every target.
 using LaneTag = hn::CappedTag<float, kLanes>;
 
-void AffineLanes(const float* x0, const float* x1, const float* x2, const float* a, const float* b, const float* c,
-                 const float* d, float* y) {
+void TransformLanes(const LaneRays& in, const float (*rotation)[kLanes], const float (*translation)[kLanes],
+                    const LaneRaysOut& out) {
   const LaneTag df;
+  const auto zero = hn::Zero(df);
   for (size_t i = 0; i < kLanes; i += hn::Lanes(df)) {
-    const auto ax = hn::Mul(hn::LoadU(df, a + i), hn::LoadU(df, x0 + i));
-    const auto bx = hn::Mul(hn::LoadU(df, b + i), hn::LoadU(df, x1 + i));
-    const auto cx = hn::Mul(hn::LoadU(df, c + i), hn::LoadU(df, x2 + i));
-    hn::StoreU(hn::Add(hn::Add(hn::Add(ax, bx), cx), hn::LoadU(df, d + i)), df, y + i);
+    const auto row = [&](const float* const* x, size_t j, decltype(zero) d) {
+      const auto ax = hn::Mul(hn::LoadU(df, rotation[3 * j] + i), hn::LoadU(df, x[0] + i));
+      const auto by = hn::Mul(hn::LoadU(df, rotation[3 * j + 1] + i), hn::LoadU(df, x[1] + i));
+      const auto cz = hn::Mul(hn::LoadU(df, rotation[3 * j + 2] + i), hn::LoadU(df, x[2] + i));
+      return hn::Add(hn::Add(hn::Add(ax, by), cz), d);
+    };
+    for (size_t j = 0; j < 3; ++j) {
+      hn::StoreU(row(in.org, j, hn::LoadU(df, translation[j] + i)), df, out.org[j] + i);
+      hn::StoreU(row(in.dir, j, zero), df, out.dir[j] + i);
+    }
   }
 }
 
@@ -76,13 +83,13 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace lidartwin::caster_detail {
 
-HWY_EXPORT(AffineLanes);
+HWY_EXPORT(TransformLanes);
 HWY_EXPORT(CosIncidenceLanes);
 HWY_EXPORT(DepthSteps);
 
-void affine_lanes(const float* x0, const float* x1, const float* x2, const float* a, const float* b, const float* c,
-                  const float* d, float* y) {
-  HWY_DYNAMIC_DISPATCH(AffineLanes)(x0, x1, x2, a, b, c, d, y);
+void transform_lanes(const LaneRays& in, const float (*rotation)[kLanes], const float (*translation)[kLanes],
+                     const LaneRaysOut& out) {
+  HWY_DYNAMIC_DISPATCH(TransformLanes)(in, rotation, translation, out);
 }
 
 void cos_incidence_lanes(const float* nx, const float* ny, const float* nz, const float* dx, const float* dy,

@@ -10,9 +10,20 @@ namespace lidartwin::caster_detail {
 
 inline constexpr size_t kLanes = 16;  // RayStrip::kColumns, one Embree packet
 
-// y = ((a*x0 + b*x1) + c*x2) + d over 16 lanes, each with its own a, b, c, d.
-void affine_lanes(const float* x0, const float* x1, const float* x2, const float* a, const float* b, const float* c,
-                  const float* d, float* y);
+// A packet's 16 rays as six 16-lane arrays (structure of arrays, as Embree's RTCRay16).
+struct LaneRays {
+  const float* org[3];
+  const float* dir[3];
+};
+struct LaneRaysOut {
+  float* org[3];
+  float* dir[3];
+};
+// Sensor rays into the world, each lane by its own rotation (row-major, rotation[j][lane]) and
+// translation: org' = R org + t, dir' = R dir + 0, each row ((a*x + b*y) + c*z) + d. (The 0 is
+// added as before: it turns a -0 direction component into +0, which Embree's reciprocal sees.)
+void transform_lanes(const LaneRays& in, const float (*rotation)[kLanes], const float (*translation)[kLanes],
+                     const LaneRaysOut& out);
 // |n . dir| / |n| for 16 lanes, and 1 where that is not below 1 (rounding, or NaN from a
 // degenerate normal).
 void cos_incidence_lanes(const float* nx, const float* ny, const float* nz, const float* dx, const float* dy,

@@ -61,22 +61,27 @@ void ClampedSteps(const float* values, size_t rows, float inverse_step, float hi
   }
 }
 
+void ConvertChannels(const ChannelConversion* channels, size_t count, size_t rows) {
+  for (size_t k = 0; k < count; ++k) {
+    const ChannelConversion& c = channels[k];
+    if (c.range) {
+      RangeSteps(c.values, rows, c.scale, c.low, c.high, c.step, c.out);
+    } else {
+      ClampedSteps(c.values, rows, c.scale, c.high, c.step, c.out);
+    }
+  }
+}
+
 }  // namespace lidartwin::frame_detail::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
 namespace lidartwin::frame_detail {
 
-HWY_EXPORT(RangeSteps);
-HWY_EXPORT(ClampedSteps);
+HWY_EXPORT(ConvertChannels);
 
-void range_steps(const float* values, size_t rows, float to_steps, float lowest, float highest, int32_t step,
-                 uint32_t* out) {
-  HWY_DYNAMIC_DISPATCH(RangeSteps)(values, rows, to_steps, lowest, highest, step, out);
-}
-
-void clamped_steps(const float* values, size_t rows, float inverse_step, float highest, int32_t step, uint32_t* out) {
-  HWY_DYNAMIC_DISPATCH(ClampedSteps)(values, rows, inverse_step, highest, step, out);
+void convert_channels(const ChannelConversion* channels, size_t count, size_t rows) {
+  HWY_DYNAMIC_DISPATCH(ConvertChannels)(channels, count, rows);
 }
 
 }  // namespace lidartwin::frame_detail

@@ -32,13 +32,7 @@ using ChannelValues = std::array<const uint32_t*, kChannelFieldCount>;
 
 // A channel's place in the pixel as a 32-bit word: every pixel field lies inside one aligned
 // 32-bit word (checked at compile time in field_table.cpp), so the 64-bit codec narrows to it.
-struct WordLane {
-  size_t word;   // 32-bit word of the pixel
-  int down = 0;  // value >> down << up, & mask = the field's bits in that word
-  int up = 0;
-  uint32_t mask = 0;
-};
-WordLane word_lane(const packet_detail::FieldCodec& codec) {
+packet_detail::WordLane word_lane(const packet_detail::FieldCodec& codec) {
   const bool high = (codec.mask & 0xFFFF'FFFFull) == 0;  // the field is in the upper half
   const int shift = codec.shift - (high ? 32 : 0);
   return {codec.offset / 4 + (high ? 1 : 0), std::max(0, -shift), std::max(0, shift),
@@ -52,23 +46,20 @@ WordLane word_lane(const packet_detail::FieldCodec& codec) {
 // would halve the lanes.
 void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& values, uint8_t* pixels) {
   assert(impl.pixel_bytes % 4 == 0 && impl.pixel_bytes / 4 <= packet_detail::kMaxPixelWords);
-  const size_t words = impl.pixel_bytes / 4;
   const auto height = static_cast<size_t>(impl.format.pixels_per_column);
-  alignas(64) uint32_t planes[packet_detail::kMaxPixelWords][kMaxPixelsPerColumn];
-  for (size_t w = 0; w < words; ++w) std::fill_n(planes[w], height, 0u);
+  std::array<packet_detail::WordLane, kChannelFieldCount> lanes;
   for (size_t k = 0; k < impl.channels.size(); ++k) {
-    const WordLane lane = word_lane(impl.channels[k].codec);
+    lanes[k] = word_lane(impl.channels[k].codec);
 #ifndef NDEBUG
     for (size_t row = 0; row < height; ++row) {
       assert(impl.channels[k].codec.fits(values[k][row]) && "channel value wider than its packet field");
     }
 #endif
-    packet_detail::or_into_plane(values[k], height, lane.down, lane.up, lane.mask, planes[lane.word]);
   }
-  const uint32_t* plane_rows[packet_detail::kMaxPixelWords];
-  for (size_t w = 0; w < words; ++w) plane_rows[w] = planes[w];
-  alignas(64) uint32_t interleaved[kMaxPixelsPerColumn * packet_detail::kMaxPixelWords];
-  packet_detail::interleave_planes(plane_rows, words, height, interleaved);
+  static_assert(static_cast<int>(packet_detail::kMaxPixelRows) == kMaxPixelsPerColumn);
+  alignas(64) uint32_t interleaved[packet_detail::kMaxPixelRows * packet_detail::kMaxPixelWords];
+  packet_detail::assemble_pixels(values.data(), lanes.data(), impl.channels.size(), impl.pixel_bytes / 4, height,
+                                 interleaved);
   std::memcpy(pixels, interleaved, height * impl.pixel_bytes);
 }
 

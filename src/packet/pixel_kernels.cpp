@@ -5,6 +5,8 @@
 #define HWY_TARGET_INCLUDE "packet/pixel_kernels.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 
+#include <algorithm>
+
 #include <hwy/highway.h>
 
 #include "packet/pixel_kernels.h"
@@ -46,21 +48,29 @@ void InterleavePlanes(const uint32_t* const* planes, size_t words, size_t rows, 
   }
 }
 
+void AssemblePixels(const uint32_t* const* values, const WordLane* lanes, size_t channels, size_t words, size_t rows,
+                    uint32_t* pixels) {
+  HWY_ALIGN uint32_t planes[kMaxPixelWords][kMaxPixelRows];
+  for (size_t w = 0; w < words; ++w) std::fill_n(planes[w], rows, 0u);
+  for (size_t k = 0; k < channels; ++k) {
+    OrIntoPlane(values[k], rows, lanes[k].down, lanes[k].up, lanes[k].mask, planes[lanes[k].word]);
+  }
+  const uint32_t* plane_rows[kMaxPixelWords];
+  for (size_t w = 0; w < words; ++w) plane_rows[w] = planes[w];
+  InterleavePlanes(plane_rows, words, rows, pixels);
+}
+
 }  // namespace lidartwin::packet_detail::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
 namespace lidartwin::packet_detail {
 
-HWY_EXPORT(OrIntoPlane);
-HWY_EXPORT(InterleavePlanes);
+HWY_EXPORT(AssemblePixels);
 
-void or_into_plane(const uint32_t* values, size_t rows, int down, int up, uint32_t mask, uint32_t* plane) {
-  HWY_DYNAMIC_DISPATCH(OrIntoPlane)(values, rows, down, up, mask, plane);
-}
-
-void interleave_planes(const uint32_t* const* planes, size_t words, size_t rows, uint32_t* pixels) {
-  HWY_DYNAMIC_DISPATCH(InterleavePlanes)(planes, words, rows, pixels);
+void assemble_pixels(const uint32_t* const* values, const WordLane* lanes, size_t channels, size_t words, size_t rows,
+                     uint32_t* pixels) {
+  HWY_DYNAMIC_DISPATCH(AssemblePixels)(values, lanes, channels, words, rows, pixels);
 }
 
 }  // namespace lidartwin::packet_detail

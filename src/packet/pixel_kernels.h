@@ -1,6 +1,6 @@
 #pragma once
-// The two passes that assemble one column's pixels from its channels (packet_encode.cpp), as
-// SIMD kernels chosen at run time for the CPU (Google Highway: SSSE3, SSE4, AVX2, AVX-512, NEON...).
+// Assembling one column's pixels from its channels (packet_encode.cpp), as a SIMD kernel chosen at
+// run time for the CPU (Google Highway: SSSE3, SSE4, AVX2, AVX-512, NEON...), one call a column.
 // Integer shifts, masks and moves only: every target writes the same bytes.
 #include <cstddef>
 #include <cstdint>
@@ -8,12 +8,21 @@
 namespace lidartwin::packet_detail {
 
 inline constexpr size_t kMaxPixelWords = 6;  // the widest pixel, 24 bytes
+inline constexpr size_t kMaxPixelRows = 128;
 
-// plane[row] |= ((values[row] >> down) << up) & mask for rows [0, rows): one channel into the
-// 32-bit word of the pixel that holds it.
-void or_into_plane(const uint32_t* values, size_t rows, int down, int up, uint32_t mask, uint32_t* plane);
-// pixels[row * words + w] = planes[w][row]: the planes (one per 32-bit word) interleaved into
-// pixels, words in [1, kMaxPixelWords].
-void interleave_planes(const uint32_t* const* planes, size_t words, size_t rows, uint32_t* pixels);
+// A channel's place in the pixel: the 32-bit word that holds it, and value >> down << up, & mask =
+// the field's bits in that word.
+struct WordLane {
+  size_t word = 0;
+  int down = 0;
+  int up = 0;
+  uint32_t mask = 0;
+};
+
+// One column's pixels from its channels, in two passes over planes (one per 32-bit word of the
+// pixel): each channel ORed into its plane, then the planes interleaved into pixels
+// (pixels[row * words + w]); words in [1, kMaxPixelWords], rows at most kMaxPixelRows.
+void assemble_pixels(const uint32_t* const* values, const WordLane* lanes, size_t channels, size_t words, size_t rows,
+                     uint32_t* pixels);
 
 }  // namespace lidartwin::packet_detail
