@@ -26,3 +26,6 @@ target_include_directories(lidartwin_asio SYSTEM INTERFACE ${ASIO_INCLUDE_DIR})
 target_compile_definitions(lidartwin_asio INTERFACE ASIO_STANDALONE ASIO_NO_DEPRECATED)
 find_package(fmt REQUIRED)  # also spdlog's formatter
 find_package(LibLZMA REQUIRED)  # lzma_crc64: the packets' CRC-64/XZ
+# Google Highway (libhwy-dev): SIMD kernels compiled once per target, the CPU's best chosen at run
+# time (cmake/InstructionSet.cmake).
+find_package(hwy REQUIRED)

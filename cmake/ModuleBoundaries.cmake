@@ -47,6 +47,7 @@ lidartwin_third_party(spdlog TARGETS spdlog::spdlog HEADERS spdlog/spdlog.h spdl
 lidartwin_third_party(eigen TARGETS Eigen3::Eigen)
 lidartwin_third_party(cli11 TARGETS CLI11::CLI11 HEADERS CLI/CLI.hpp)
 lidartwin_third_party(threads TARGETS Threads::Threads)
+lidartwin_third_party(hwy TARGETS hwy::hwy HEADERS hwy/highway.h hwy/foreach_target.h hwy/base.h hwy/targets.h)
 
 # Links `target` PRIVATE to the named libraries, unfenced (tests, tools).
 function(lidartwin_link_third_party target)

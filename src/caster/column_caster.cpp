@@ -11,10 +11,13 @@
 
 #include <embree3/rtcore.h>
 
+#include "caster/lane_kernels.h"
+
 namespace lidartwin {
 namespace {
 
 constexpr int kLanes = RayStrip::kColumns;
+static_assert(kLanes == caster_detail::kLanes);
 constexpr size_t kMaxRows = 128;  // beams of the largest Ouster sensor
 
 // A depth step between two hits: farther apart than 0.3 m or 5 % of the farther range.
@@ -42,24 +45,11 @@ struct LaneTransforms {
   }
 };
 
-// y = a*x0 + b*x1 + c*x2 + d over 16 lanes, each with its own a, b, c, d; restrict pointers and a
-// fixed trip count let the compiler vectorize it.
-void affine_lanes(const float* __restrict x0, const float* __restrict x1, const float* __restrict x2,
-                  const float* __restrict a, const float* __restrict b, const float* __restrict c,
-                  const float* __restrict d, float* __restrict y) {
-  for (int i = 0; i < kLanes; ++i) y[i] = a[i] * x0[i] + b[i] * x1[i] + c[i] * x2[i] + d[i];
-}
-
 // Sensor-frame rays into the world (protocol doc 7.2: the SDK's rays, moved by the pose of their
 // column's time). Directions add a zero translation, as origins add theirs.
 void transform_lanes(const RayStrip& rays, const LaneTransforms& w, RTCRay16& ray) {
-  alignas(64) static constexpr float kZero[kLanes] = {};
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[0], w.r[1], w.r[2], w.t[0], ray.org_x);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[3], w.r[4], w.r[5], w.t[1], ray.org_y);
-  affine_lanes(rays.org_x, rays.org_y, rays.org_z, w.r[6], w.r[7], w.r[8], w.t[2], ray.org_z);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[0], w.r[1], w.r[2], kZero, ray.dir_x);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[3], w.r[4], w.r[5], kZero, ray.dir_y);
-  affine_lanes(rays.dir_x, rays.dir_y, rays.dir_z, w.r[6], w.r[7], w.r[8], kZero, ray.dir_z);
+  caster_detail::transform_lanes({{rays.org_x, rays.org_y, rays.org_z}, {rays.dir_x, rays.dir_y, rays.dir_z}}, w.r, w.t,
+                                 {{ray.org_x, ray.org_y, ray.org_z}, {ray.dir_x, ray.dir_y, ray.dir_z}});
 }
 
 // The fields every lane shares; tnear starts each ray at the physical beam origin.
@@ -78,16 +68,10 @@ void init_packet(float tnear, float tfar, RTCRayHit16& packet) {
 }
 
 // |cos| of the incidence angle from the geometric normal, for all lanes at once; a degenerate
-// normal (NaN) or rounding above 1 gives 1. Eigen arrays, because a plain loop with std::sqrt
-// stays scalar under -fmath-errno.
+// normal (NaN) or rounding above 1 gives 1.
 void incidence_lanes(const RTCRayHit16& packet, float* out) {
-  using Lanes = Eigen::Array<float, kLanes, 1>;
-  using Map = Eigen::Map<const Lanes, Eigen::Aligned64>;
-  const Map nx(packet.hit.Ng_x), ny(packet.hit.Ng_y), nz(packet.hit.Ng_z);
-  const Lanes dot = nx * Map(packet.ray.dir_x) + ny * Map(packet.ray.dir_y) + nz * Map(packet.ray.dir_z);
-  const Lanes c = dot.abs() / (nx.square() + ny.square() + nz.square()).sqrt();
-  Eigen::Map<Lanes, Eigen::Aligned64> cosine(out);
-  cosine = (c < 1.0f).select(c, Lanes::Ones());
+  caster_detail::cos_incidence_lanes(packet.hit.Ng_x, packet.hit.Ng_y, packet.hit.Ng_z, packet.ray.dir_x,
+                                     packet.ray.dir_y, packet.ray.dir_z, out);
 }
 
 // Every pixel starts from this (copied from read-only memory: `ideal = IdealReturn{}` built the
@@ -133,17 +117,13 @@ void mark_vertical_edges(std::span<IdealReturn> column) {
   if (n == 0) return;
   // Profiles have 16 to 128 beams (profile_parse.cpp); a longer column is a caller's bug.
   if (n > kMaxRows) throw std::length_error("mark_vertical_edges: a column has at most 128 rows");
-  // step[r] = 1 when rows r and r + 1 differ by a depth step or in hit/miss; then each row is an
-  // edge when the step above or below it is. Ranges are copied out of the returns first, so the
-  // step loop runs on plain arrays without branches and vectorizes.
+  // step[r] = 1 when rows r and r + 1 differ by a depth step or in hit/miss (depth_step's rule);
+  // then each row is an edge when the step above or below it is. Ranges are copied out of the
+  // returns first, so the step loop runs on plain arrays, vectorized.
   alignas(64) float range[kMaxRows + 1];
   alignas(64) uint8_t step[kMaxRows + 1];
   for (size_t r = 0; r < n; ++r) range[r] = column[r].range_m;
-  for (size_t r = 0; r + 1 < n; ++r) {
-    const float a = range[r], b = range[r + 1];
-    const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
-    step[r] = static_cast<uint8_t>((hit_a != hit_b) | (hit_a & hit_b & depth_step(a, b)));
-  }
+  caster_detail::depth_steps(range, n, step);
   column[0].edge = n > 1 ? step[0] : 0;
   for (size_t r = 1; r + 1 < n; ++r) column[r].edge = step[r - 1] | step[r];
   if (n > 1) column[n - 1].edge = step[n - 2];

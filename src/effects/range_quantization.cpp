@@ -7,17 +7,10 @@
 
 #include "effects/builtin_effects.h"
 #include "effects/parameters.h"
+#include "effects/quantization_kernels.h"
 
 namespace lidartwin::effects_detail {
 namespace {
-
-// std::nearbyint is a library call on baseline x86-64 (no SSE4.1 roundss); a 32-bit conversion is
-// one instruction and vectorizes (cvttps2dq). The wire carries at most 2^20 mm; a range beyond
-// 2^31 steps saturates there instead of overflowing.
-float round_half_away(float x) {
-  const float shifted = std::clamp(x + std::copysign(0.5f, x), -2147483520.0f, 2147483520.0f);
-  return static_cast<float>(static_cast<int32_t>(shifted));
-}
 
 struct QuantizationParameters {
   double step_m = 0.0;  // 0 = the wire format's step, context.range_step_m
@@ -45,13 +38,12 @@ class RangeQuantization final : public TabledEffect<RangeQuantization, Quantizat
   void simulate(std::span<const IdealReturn>, const ColumnContext& context, MeasuredColumn& measured) const override {
     const double delta = step(context);
     if (delta <= 0.0) return;
-    // The rounding in float, four lanes to a vector: r / step is exact to 0.03 steps even at
+    // The rounding in float, in vectors: r / step is exact to 0.03 steps even at
     // 500 m, so only ranges that close to a half step can round the other way than in exact
     // arithmetic. The product in double, so the result is the float nearest the lattice point.
-    const auto inverse = static_cast<float>(1.0 / delta);
-    for (float& range : measured.range_m) {  // no return (0) rounds to 0: no branch needed
-      range = static_cast<float>(delta * static_cast<double>(round_half_away(range * inverse)));
-    }
+    // No return (0) rounds to 0: no branch needed. (std::nearbyint would be a library call on
+    // baseline x86-64; the kernel rounds half away from zero through an int32 conversion.)
+    quantize_ranges(measured.range_m.data(), measured.range_m.size(), static_cast<float>(1.0 / delta), delta);
   }
 
   void predict(const IdealReturn&, const ColumnContext& context, Prediction& prediction) const override {

@@ -1,69 +1,50 @@
 #include "frame/channel_encoder.h"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cstdint>
+#include <iterator>
 #include <vector>
 
 namespace lidartwin::frame_detail {
 namespace {
 
-// range_mm = round(range_m * 1000) to the field's step; 0 means no return, and so does a range
-// the field cannot hold (a clamped range would be a false point at the field's end). Values stay
-// below 2^20, so the conversion goes through int32 (one instruction, vectorizable).
-template <std::vector<float> MeasuredColumn::*Member>
-void write_range(const ChannelLimits& c, const MeasuredColumn& measured, std::span<uint32_t> out) {
-  const float to_steps = c.scale / c.step;
-  const float lowest = 0.5f;
-  const float highest = c.max / c.step + 0.5f;
-  const auto step = static_cast<int32_t>(c.step);
-  const float* values = (measured.*Member).data();
-  for (size_t r = 0; r < out.size(); ++r) {
-    const float steps = values[r] * to_steps;
-    const bool representable = steps >= lowest && steps < highest;  // false for NaN
-    out[r] = static_cast<uint32_t>(representable ? static_cast<int32_t>(steps + 0.5f) * step : 0);
-  }
-}
-
-// Signal, near-IR and reflectivity saturate at their field's maximum; negative or NaN gives 0.
-template <std::vector<float> MeasuredColumn::*Member>
-void write_clamped(const ChannelLimits& c, const MeasuredColumn& measured, std::span<uint32_t> out) {
-  const float inverse_step = 1.0f / c.step;
-  const float highest = c.max / c.step;
-  const auto step = static_cast<int32_t>(c.step);
-  const float* values = (measured.*Member).data();
-  for (size_t r = 0; r < out.size(); ++r) {
-    float steps = values[r] * inverse_step;
-    steps = steps > 0.0f ? steps : 0.0f;
-    steps = steps < highest ? steps : highest;
-    out[r] = static_cast<uint32_t>(static_cast<int32_t>(steps + 0.5f) * step);
-  }
-}
-
+// Which MeasuredColumn array feeds which channel, and how (m -> mm for ranges). FLAGS and WINDOW
+// are opaque to the SDK: left 0 (4.6).
 struct Source {
   ChannelField field;
-  float scale;
-  ChannelEncoder::Writer write;
+  std::vector<float> MeasuredColumn::*values;
+  bool range;
 };
-// Which MeasuredColumn array feeds which channel. FLAGS and WINDOW are opaque to the SDK: left 0 (4.6).
 constexpr Source kSources[] = {
-    {ChannelField::kRange, 1000.0f, &write_range<&MeasuredColumn::range_m>},
-    {ChannelField::kReflectivity, 1.0f, &write_clamped<&MeasuredColumn::reflectivity>},
-    {ChannelField::kSignal, 1.0f, &write_clamped<&MeasuredColumn::signal_photons>},
-    {ChannelField::kNearIr, 1.0f, &write_clamped<&MeasuredColumn::near_ir_photons>},
-    {ChannelField::kRange2, 1000.0f, &write_range<&MeasuredColumn::range2_m>},
-    {ChannelField::kReflectivity2, 1.0f, &write_clamped<&MeasuredColumn::reflectivity2>},
-    {ChannelField::kSignal2, 1.0f, &write_clamped<&MeasuredColumn::signal2_photons>},
+    {ChannelField::kRange, &MeasuredColumn::range_m, true},
+    {ChannelField::kReflectivity, &MeasuredColumn::reflectivity, false},
+    {ChannelField::kSignal, &MeasuredColumn::signal_photons, false},
+    {ChannelField::kNearIr, &MeasuredColumn::near_ir_photons, false},
+    {ChannelField::kRange2, &MeasuredColumn::range2_m, true},
+    {ChannelField::kReflectivity2, &MeasuredColumn::reflectivity2, false},
+    {ChannelField::kSignal2, &MeasuredColumn::signal2_photons, false},
 };
+
+// range_mm = round(range_m * 1000) to the field's step; 0 means no return, and so does a range
+// the field cannot hold (a clamped range would be a false point at the field's end). Values stay
+// below 2^20, so the conversion goes through int32 (one instruction, vectorized). Signal, near-IR
+// and reflectivity saturate at their field's maximum; negative or NaN gives 0.
+ChannelConversion conversion(const Source& source, float step, float max) {
+  if (source.range)
+    return {nullptr, nullptr, true, 1000.0f / step, 0.5f, max / step + 0.5f, static_cast<int32_t>(step)};
+  return {nullptr, nullptr, false, 1.0f / step, 0.0f, max / step, static_cast<int32_t>(step)};
+}
 
 }  // namespace
 
 ChannelEncoder::ChannelEncoder(const PacketFormat& format) {
   for (const Source& source : kSources) {
     if (!format.has_channel(source.field)) continue;
-    const ChannelLimits limits{source.scale, static_cast<float>(format.channel_step(source.field)),
-                               static_cast<float>(format.channel_max(source.field))};
-    channels_.push_back({source.field, limits, source.write});
+    channels_.push_back({source.field, source.values,
+                         conversion(source, static_cast<float>(format.channel_step(source.field)),
+                                    static_cast<float>(format.channel_max(source.field)))});
   }
   for (int f = 0; f < kChannelFieldCount; ++f) {
     if (format.has_channel(static_cast<ChannelField>(f))) fields_.push_back(static_cast<ChannelField>(f));
@@ -72,7 +53,13 @@ ChannelEncoder::ChannelEncoder(const PacketFormat& format) {
 
 void ChannelEncoder::write(const MeasuredColumn& measured, int column, Scan& scan) const {
   assert(static_cast<int>(measured.size()) == scan.height);
-  for (const Channel& channel : channels_) channel.write(channel.limits, measured, scan.column(channel.field, column));
+  std::array<ChannelConversion, std::size(kSources)> conversions;
+  for (size_t k = 0; k < channels_.size(); ++k) {
+    conversions[k] = channels_[k].conversion;
+    conversions[k].values = (measured.*channels_[k].values).data();
+    conversions[k].out = scan.column(channels_[k].field, column).data();
+  }
+  convert_channels(conversions.data(), channels_.size(), measured.size());
 }
 
 void ChannelEncoder::clear(int column, Scan& scan) const {

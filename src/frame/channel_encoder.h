@@ -5,18 +5,12 @@
 #include <span>
 #include <vector>
 
+#include "frame/channel_kernels.h"
 #include "lidartwin/effects/measurement.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/packet/scan.h"
 
 namespace lidartwin::frame_detail {
-
-// A channel's conversion: value (in protocol units, after scale) -> multiple of step, at most max.
-struct ChannelLimits {
-  float scale;  // 1000 for ranges (m -> mm), else 1
-  float step;
-  float max;
-};
 
 class ChannelEncoder {
  public:
@@ -24,13 +18,11 @@ class ChannelEncoder {
   void write(const MeasuredColumn& measured, int column, Scan& scan) const;
   void clear(int column, Scan& scan) const;  // every channel of the column to 0
 
-  using Writer = void (*)(const ChannelLimits&, const MeasuredColumn&, std::span<uint32_t>);
-
  private:
   struct Channel {
     ChannelField field;
-    ChannelLimits limits;
-    Writer write;  // instantiated per MeasuredColumn array, so the loop reads one float array
+    std::vector<float> MeasuredColumn::*values;
+    ChannelConversion conversion;  // values and out filled in per column
   };
   std::vector<Channel> channels_;     // the profile's channels that carry a Measurement value
   std::vector<ChannelField> fields_;  // every channel the profile carries

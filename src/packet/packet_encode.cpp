@@ -6,6 +6,7 @@
 
 #include "packet/footer.h"
 #include "packet/packet_format_impl.h"
+#include "packet/pixel_kernels.h"
 
 namespace lidartwin {
 namespace {
@@ -31,13 +32,7 @@ using ChannelValues = std::array<const uint32_t*, kChannelFieldCount>;
 
 // A channel's place in the pixel as a 32-bit word: every pixel field lies inside one aligned
 // 32-bit word (checked at compile time in field_table.cpp), so the 64-bit codec narrows to it.
-struct WordLane {
-  size_t word;   // 32-bit word of the pixel
-  int down = 0;  // value >> down << up, & mask = the field's bits in that word
-  int up = 0;
-  uint32_t mask = 0;
-};
-WordLane word_lane(const packet_detail::FieldCodec& codec) {
+packet_detail::WordLane word_lane(const packet_detail::FieldCodec& codec) {
   const bool high = (codec.mask & 0xFFFF'FFFFull) == 0;  // the field is in the upper half
   const int shift = codec.shift - (high ? 32 : 0);
   return {codec.offset / 4 + (high ? 1 : 0), std::max(0, -shift), std::max(0, shift),
@@ -45,31 +40,27 @@ WordLane word_lane(const packet_detail::FieldCodec& codec) {
 }
 
 // One column's pixels are assembled as planes, one per 32-bit word of the pixel: each channel is
-// one contiguous pass over its rows into its plane (vectorized, four or more rows per
-// instruction), then one pass interleaves the planes into pixels and a single copy writes them.
-// Read-modify-write of the packet's own bytes would instead stall store forwarding on
-// overlapping words, and 64-bit words would halve the lanes.
-template <size_t kPixelBytes>
+// one contiguous pass over its rows into its plane (vectorized: pixel_kernels.h), then one pass
+// interleaves the planes into pixels and a single copy writes them. Read-modify-write of the
+// packet's own bytes would instead stall store forwarding on overlapping words, and 64-bit words
+// would halve the lanes.
 void encode_rows(const packet_detail::FormatCodecs& impl, const ChannelValues& values, uint8_t* pixels) {
-  static_assert(kPixelBytes % 4 == 0);
-  constexpr size_t kWords = kPixelBytes / 4;
+  assert(impl.pixel_bytes % 4 == 0 && impl.pixel_bytes / 4 <= packet_detail::kMaxPixelWords);
   const auto height = static_cast<size_t>(impl.format.pixels_per_column);
-  alignas(64) uint32_t planes[kWords][kMaxPixelsPerColumn];
-  for (auto& plane : planes) std::fill_n(plane, height, 0u);
+  std::array<packet_detail::WordLane, kChannelFieldCount> lanes;
   for (size_t k = 0; k < impl.channels.size(); ++k) {
-    const WordLane lane = word_lane(impl.channels[k].codec);
-    const uint32_t* __restrict v = values[k];
-    uint32_t* __restrict plane = planes[lane.word];
+    lanes[k] = word_lane(impl.channels[k].codec);
+#ifndef NDEBUG
     for (size_t row = 0; row < height; ++row) {
-      assert(impl.channels[k].codec.fits(v[row]) && "channel value wider than its packet field");
-      plane[row] |= ((v[row] >> lane.down) << lane.up) & lane.mask;
+      assert(impl.channels[k].codec.fits(values[k][row]) && "channel value wider than its packet field");
     }
+#endif
   }
-  alignas(64) uint32_t interleaved[kMaxPixelsPerColumn * kWords];
-  for (size_t row = 0; row < height; ++row) {
-    for (size_t w = 0; w < kWords; ++w) interleaved[row * kWords + w] = planes[w][row];
-  }
-  std::memcpy(pixels, interleaved, height * kPixelBytes);
+  static_assert(static_cast<int>(packet_detail::kMaxPixelRows) == kMaxPixelsPerColumn);
+  alignas(64) uint32_t interleaved[packet_detail::kMaxPixelRows * packet_detail::kMaxPixelWords];
+  packet_detail::assemble_pixels(values.data(), lanes.data(), impl.channels.size(), impl.pixel_bytes / 4, height,
+                                 interleaved);
+  std::memcpy(pixels, interleaved, height * impl.pixel_bytes);
 }
 
 void encode_pixels(const packet_detail::FormatCodecs& impl, const Scan& scan, int index, int m,
@@ -81,15 +72,7 @@ void encode_pixels(const packet_detail::FormatCodecs& impl, const Scan& scan, in
   }
   uint8_t* pixels = out.data() + impl.pixel_start(index, 0);
   assert(impl.pixel_start(index, impl.format.pixels_per_column) <= out.size());
-  switch (impl.pixel_bytes) {
-    case 4: return encode_rows<4>(impl, values, pixels);
-    case 8: return encode_rows<8>(impl, values, pixels);
-    case 12: return encode_rows<12>(impl, values, pixels);
-    case 16: return encode_rows<16>(impl, values, pixels);
-    case 20: return encode_rows<20>(impl, values, pixels);
-    case 24: return encode_rows<24>(impl, values, pixels);
-    default: assert(false && "pixel size missing from the dispatch");
-  }
+  encode_rows(impl, values, pixels);
 }
 
 void encode_column(const packet_detail::FormatCodecs& impl, const PacketHeader& header, const Scan& scan, int index,

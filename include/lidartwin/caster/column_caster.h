@@ -18,8 +18,8 @@ class ColumnCaster {
   ColumnCaster(const Scene& scene, const BeamGeometry& geometry,
                float max_range_m = std::numeric_limits<float>::infinity());
   // One column to cast: its rays from its own pose (the pose of the column's time), its returns
-  // into out (out.size() == geometry.rows()). The pose by pointer: Pose's alignment differs
-  // between modules built for AVX and baseline x86-64, so a struct holding one would too.
+  // into out (out.size() == geometry.rows()). The pose by pointer: the renderer's per-column
+  // poses (or their moved copies) stay where they are.
   struct Column {
     int measurement_id;
     const Pose* world_from_sensor;

@@ -30,6 +30,13 @@ struct StampedPose {
   Pose pose;
 };
 
+// One layout in every translation unit (cmake/InstructionSet.cmake): Eigen sizes and aligns
+// Quaterniond by the vector width a unit is compiled for, and a unit built for AVX once saw
+// StampedPose as 96 bytes where the rest of the program saw 80. A unit that disagrees fails here.
+static_assert(alignof(Eigen::Quaterniond) == 16 && sizeof(Eigen::Quaterniond) == 32);
+static_assert(alignof(Pose) == 16 && sizeof(Pose) == 64);
+static_assert(alignof(StampedPose) == 16 && sizeof(StampedPose) == 80);
+
 // A trajectory: linear interpolation of translation and slerp of rotation between samples.
 // A looping trajectory repeats with period (end - start); otherwise it holds its end poses.
 class Trajectory {

@@ -94,4 +94,8 @@ class MountedPoses final : public PoseSource {
   Pose mounting_;
 };
 
+// The pose sources that hold a Pose share its one layout (pose.h).
+static_assert(alignof(StaticPose) == 16 && sizeof(StaticPose) == 80);
+static_assert(alignof(MountedPoses) == 16 && sizeof(MountedPoses) == 80);
+
 }  // namespace lidartwin

@@ -1,0 +1,105 @@
+// Highway kernels of lane_kernels.h, compiled once per SIMD target (hwy/foreach_target.h includes
+// this file again for each); HWY_DYNAMIC_DISPATCH calls the best one the CPU runs. Maxima are
+// comparisons and selects as std::max writes them, so ties and signed zeros resolve alike.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "caster/lane_kernels.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+
+#include <cmath>
+
+#include <hwy/highway.h>
+
+#include "caster/lane_kernels.h"
+
+HWY_BEFORE_NAMESPACE();
+namespace lidartwin::caster_detail::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+// At most 16 lanes a vector, so a packet's 16 lanes are whole vectors on every target.
+using LaneTag = hn::CappedTag<float, kLanes>;
+
+void TransformLanes(const LaneRays& in, const float (*rotation)[kLanes], const float (*translation)[kLanes],
+                    const LaneRaysOut& out) {
+  const LaneTag df;
+  const auto zero = hn::Zero(df);
+  for (size_t i = 0; i < kLanes; i += hn::Lanes(df)) {
+    const auto row = [&](const float* const* x, size_t j, decltype(zero) d) {
+      const auto ax = hn::Mul(hn::LoadU(df, rotation[3 * j] + i), hn::LoadU(df, x[0] + i));
+      const auto by = hn::Mul(hn::LoadU(df, rotation[3 * j + 1] + i), hn::LoadU(df, x[1] + i));
+      const auto cz = hn::Mul(hn::LoadU(df, rotation[3 * j + 2] + i), hn::LoadU(df, x[2] + i));
+      return hn::Add(hn::Add(hn::Add(ax, by), cz), d);
+    };
+    for (size_t j = 0; j < 3; ++j) {
+      hn::StoreU(row(in.org, j, hn::LoadU(df, translation[j] + i)), df, out.org[j] + i);
+      hn::StoreU(row(in.dir, j, zero), df, out.dir[j] + i);
+    }
+  }
+}
+
+void CosIncidenceLanes(const float* nx, const float* ny, const float* nz, const float* dx, const float* dy,
+                       const float* dz, float* out) {
+  const LaneTag df;
+  const auto one = hn::Set(df, 1.0f);
+  for (size_t i = 0; i < kLanes; i += hn::Lanes(df)) {
+    const auto x = hn::LoadU(df, nx + i), y = hn::LoadU(df, ny + i), z = hn::LoadU(df, nz + i);
+    const auto dot = hn::Add(hn::Add(hn::Mul(x, hn::LoadU(df, dx + i)), hn::Mul(y, hn::LoadU(df, dy + i))),
+                             hn::Mul(z, hn::LoadU(df, dz + i)));
+    const auto norm = hn::Sqrt(hn::Add(hn::Add(hn::Mul(x, x), hn::Mul(y, y)), hn::Mul(z, z)));
+    const auto c = hn::Div(hn::Abs(dot), norm);
+    hn::StoreU(hn::IfThenElse(hn::Lt(c, one), c, one), df, out + i);
+  }
+}
+
+float DepthStepScalar(float a, float b) {
+  const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
+  const float farther = a < b ? b : a;
+  const float threshold = 0.3f < 0.05f * farther ? 0.05f * farther : 0.3f;
+  return (hit_a != hit_b) || (hit_a && hit_b && std::abs(a - b) > threshold) ? 1.0f : 0.0f;
+}
+
+void DepthSteps(const float* range, size_t rows, uint8_t* step) {
+  const hn::ScalableTag<float> df;
+  const hn::Rebind<int32_t, decltype(df)> di;
+  const hn::Rebind<uint8_t, decltype(df)> du8;
+  const size_t lanes = hn::Lanes(df);
+  const auto zero = hn::Zero(df), near = hn::Set(df, 0.3f), share = hn::Set(df, 0.05f);
+  size_t r = 0;
+  for (; rows > 0 && r + lanes <= rows - 1; r += lanes) {
+    const auto a = hn::LoadU(df, range + r), b = hn::LoadU(df, range + r + 1);
+    const auto hit_a = hn::Gt(a, zero), hit_b = hn::Gt(b, zero);
+    const auto scaled = hn::Mul(share, hn::IfThenElse(hn::Lt(a, b), b, a));
+    const auto threshold = hn::IfThenElse(hn::Lt(near, scaled), scaled, near);
+    const auto apart = hn::Gt(hn::Abs(hn::Sub(a, b)), threshold);
+    const auto edge = hn::Or(hn::Xor(hit_a, hit_b), hn::And(hn::And(hit_a, hit_b), apart));
+    const auto ones = hn::IfThenElseZero(hn::RebindMask(di, edge), hn::Set(di, 1));
+    hn::StoreU(hn::DemoteTo(du8, ones), du8, step + r);
+  }
+  for (; r + 1 < rows; ++r) step[r] = static_cast<uint8_t>(DepthStepScalar(range[r], range[r + 1]));
+}
+
+}  // namespace lidartwin::caster_detail::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace lidartwin::caster_detail {
+
+HWY_EXPORT(TransformLanes);
+HWY_EXPORT(CosIncidenceLanes);
+HWY_EXPORT(DepthSteps);
+
+void transform_lanes(const LaneRays& in, const float (*rotation)[kLanes], const float (*translation)[kLanes],
+                     const LaneRaysOut& out) {
+  HWY_DYNAMIC_DISPATCH(TransformLanes)(in, rotation, translation, out);
+}
+
+void cos_incidence_lanes(const float* nx, const float* ny, const float* nz, const float* dx, const float* dy,
+                         const float* dz, float* out) {
+  HWY_DYNAMIC_DISPATCH(CosIncidenceLanes)(nx, ny, nz, dx, dy, dz, out);
+}
+
+void depth_steps(const float* range, size_t rows, uint8_t* step) {
+  HWY_DYNAMIC_DISPATCH(DepthSteps)(range, rows, step);
+}
+
+}  // namespace lidartwin::caster_detail
+#endif  // HWY_ONCE
