@@ -124,7 +124,8 @@ std::optional<Trend> trend(const std::vector<const FailingRegion*>& bins) {
 }
 
 // A run of several bins in words, with the spread of their values (or their trend).
-std::string run_sentence(const std::vector<const FailingRegion*>& bins, const std::string& place, size_t pixels) {
+std::string run_sentence(const std::vector<const FailingRegion*>& bins, const std::string& place, size_t pixels,
+                         const std::optional<Trend>& found) {
   const std::string q = bins.front()->quantity;
   std::vector<double> measured, predicted;
   for (const FailingRegion* f : bins) {
@@ -136,7 +137,6 @@ std::string run_sentence(const std::vector<const FailingRegion*>& bins, const st
   const auto [mlo, mhi] = std::minmax_element(measured.begin(), measured.end());
   const auto [plo, phi] = std::minmax_element(predicted.begin(), predicted.end());
   const std::string count = fmt::format("{} bins, {} pixels", bins.size(), pixels);
-  const std::optional<Trend> found = trend(bins);
   const std::optional<std::string> changes = found ? std::optional<std::string>(found->detail) : std::nullopt;
   if (q == "bias") {
     const std::string way = *rlo > 0 ? "longer" : "shorter";
@@ -175,8 +175,9 @@ FailingRun make_run(const std::vector<const FailingRegion*>& bins, const std::ve
   }
   run.region.front().second[1] = bins.back()->region.front().second[1];
   run.where = where(run.region, names);
-  run.sentence = run_sentence(bins, run.where, run.pixels);
-  if (const std::optional<Trend> t = trend(bins)) run.trend = t->way;
+  const std::optional<Trend> found = trend(bins);
+  run.sentence = run_sentence(bins, run.where, run.pixels, found);
+  if (found) run.trend = found->way;
   return run;
 }
 

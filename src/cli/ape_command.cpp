@@ -2,7 +2,6 @@
 // (e.g. `record`'s poses.tum), as evo's evo_ape computes it: the paper's Table II experiment.
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <string>
 
@@ -72,12 +71,7 @@ int run_ape(const ApeFlags& flags) {
        {{"translation_m", {t.x(), t.y(), t.z()}}, {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}}}},
       {"times_s", r.times_s},
       {"errors_m", r.errors_m}};
-  write_atomically(fs::path(flags.out) / "ape.json", [&](const fs::path& file) {
-    std::ofstream out(file);
-    out << json.dump(2) << "\n";
-    out.close();
-    if (!out) throw InputError((fs::path(flags.out) / "ape.json").string() + ": write failed (disk full?)");
-  });
+  write_json_atomically(fs::path(flags.out) / "ape.json", json);
   std::printf("wrote %s; %s\n", (fs::path(flags.out) / "ape.json").c_str(),
               run_plot_script("ape-plot.py", flags.out, "ape.png").c_str());
   return 0;

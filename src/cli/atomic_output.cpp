@@ -1,5 +1,6 @@
 #include "cli/atomic_output.h"
 
+#include <fstream>
 #include <string>
 #include <system_error>
 
@@ -35,6 +36,15 @@ void write_atomically(const std::filesystem::path& path,
     std::filesystem::remove(temporary, ignored);
     throw InputError(path.string() + ": cannot be written: " + error.message());
   }
+}
+
+void write_json_atomically(const std::filesystem::path& path, const nlohmann::json& json) {
+  write_atomically(path, [&](const std::filesystem::path& file) {
+    std::ofstream out(file);
+    out << json.dump(2) << "\n";
+    out.close();
+    if (!out) throw InputError(path.string() + ": write failed (disk full?)");
+  });
 }
 
 }  // namespace lidartwin::cli

@@ -6,11 +6,17 @@
 #include <filesystem>
 #include <functional>
 
+#include <nlohmann/json.hpp>
+
 namespace lidartwin::cli {
 
 // write(temporary) writes the file; then it takes `path`'s name. When write throws, the temporary
 // is removed and the error goes on; a failed rename throws InputError naming `path`.
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& temporary)>& write);
+
+// `json` as text (2-space indent, a final newline) at `path`, by write_atomically; throws InputError
+// naming `path` when the write fails (a full disk).
+void write_json_atomically(const std::filesystem::path& path, const nlohmann::json& json);
 
 }  // namespace lidartwin::cli

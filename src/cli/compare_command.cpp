@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -44,13 +43,6 @@ struct CompareFlags {
   bool keep_profile = false;
   bool refit_noise = false;
 };
-
-void write_json(const fs::path& path, const nlohmann::json& json) {
-  std::ofstream out(path);
-  out << json.dump(2) << "\n";
-  out.close();
-  if (!out) throw InputError(path.string() + ": write failed (disk full?)");
-}
 
 // The profiles to compare, each with its chain (a unit's metadata: its twin's chain).
 struct Profiles {
@@ -130,7 +122,7 @@ void write_outputs(const CompareFlags& flags, const CompareResult& result, const
     write_atomically(out / "registered_poses.tum",
                      [&](const fs::path& file) { result.inputs.registration->trajectory.save_tum(file); });
   }
-  write_atomically(out / "report.json", [&](const fs::path& file) { write_json(file, report_json(result)); });
+  write_json_atomically(out / "report.json", report_json(result));
 }
 
 // An argument as a POSIX shell reads it back: quoted where it holds anything but safe characters.
