@@ -21,6 +21,7 @@
 #include "cli/unit_twin.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/error.h"
+#include "lidartwin/fault/fault_plan.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose_source.h"
@@ -81,6 +82,12 @@ bool send_clock_can_be_realtime() {
   return can;
 }
 
+std::string to_spec_joined(const std::vector<std::string>& specs) {
+  std::string joined;
+  for (const std::string& spec : specs) joined += (joined.empty() ? "" : ",") + spec;
+  return joined;
+}
+
 VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sensor,
                                 const std::array<uint8_t, 4>& address, int render_nice) {
   const SensorProfile& profile = sensor.profile;
@@ -101,6 +108,8 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sen
   setup.per_column_poses = flags.per_column_poses;
   setup.imu_noise = profile.imu;
   setup.stamp_pose_clock = flags.stamp_pose_clock;
+  // Several --fault flags make one plan: a key given twice is an error, as within one flag.
+  if (!flags.faults.empty()) setup.faults = fault_plan_from_spec(to_spec_joined(flags.faults), flags.seed);
   if (live(flags)) {
     setup.streamer.lock_step = flags.lock_step;
     setup.streamer.cast_ahead_ms = flags.cast_ahead_ms;
@@ -263,6 +272,9 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
                   "the sensor on the vehicle whose poses arrive (vehicle_from_sensor \"x y z qx qy qz qw\")");
   sub->add_flag("!--no-per-column-poses", flags->per_column_poses,
                 "cast every column of a frame from the frame's first pose (shows what motion distortion does)");
+  sub->add_option("--fault", flags->faults,
+                  "inject faults, e.g. loss=0.01,loss_burst=3,reorder=0.01,reset_at=10,seed=7 (repeatable; "
+                  "docs/fault-injection.md; GET/PUT /lidartwin/v1/faults at run time)");
   sub->add_option("--log-level", flags->log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();

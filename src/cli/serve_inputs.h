@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -45,8 +46,9 @@ struct ServeFlags {
   double cast_ahead_ms = 2.0;  // with live poses: how long before a packet is due it is cast
   std::string mount;           // vehicle_from_sensor "x y z qx qy qz qw"
   bool per_column_poses = true;
-  bool lock_step = false;         // the simulator owns time: pose times drive the sensor's clock
-  bool stamp_pose_clock = false;  // stamped on the poses' clock, paced on the host's
+  bool lock_step = false;           // the simulator owns time: pose times drive the sensor's clock
+  bool stamp_pose_clock = false;    // stamped on the poses' clock, paced on the host's
+  std::vector<std::string> faults;  // --fault SPEC, each a comma-separated list (docs/fault-injection.md)
 };
 
 // $LIDARTWIN_SOURCE_DIR, else the source tree this binary was built from.

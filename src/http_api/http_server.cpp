@@ -8,11 +8,14 @@
 #include <sys/socket.h>
 
 #include <atomic>
+#include <chrono>
+#include <optional>
 #include <thread>
 
 #include "http_api/api_util.h"
 #include "http_api/bind_probe.h"
 #include "http_api/connection_threads.h"
+#include "lidartwin/fault/fault_schedule.h"
 #include "lidartwin/http_api/request_handler.h"
 
 namespace lidartwin {
@@ -66,6 +69,19 @@ httplib::Server::HandlerResponse fill_error_body(httplib::Response& response, st
   return httplib::Server::HandlerResponse::Handled;
 }
 
+// The plan's HTTP faults for one request of the sensor's API: answered late, or with a 500 as a
+// sensor whose web server failed would, and logged with the request it hit.
+std::optional<ApiResponse> injected_fault(FaultControl& faults, const ApiRequest& request) {
+  const FaultPlan plan = faults.plan();
+  if (plan.http_500 <= 0 && plan.http_delay_ms <= 0) return std::nullopt;
+  const uint64_t sequence = faults.next_http_request();
+  const HttpFate fate = http_fate(plan, sequence);
+  if (fate.delay_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(fate.delay_ns));
+  if (!fate.fail) return std::nullopt;
+  faults.record("http_500", {{"method", request.method}, {"path", request.path}, {"request", sequence}});
+  return error_response(500, "internal error (injected by lidartwin's fault plan: http_500)");
+}
+
 }  // namespace
 
 struct HttpServer::Impl {
@@ -88,7 +104,14 @@ struct HttpServer::Impl {
 };
 
 void HttpServer::Impl::handle(const httplib::Request& request, httplib::Response& response, std::string body) {
-  write_response(handler.handle(to_api_request(request, std::move(body))), response);
+  ApiRequest api_request = to_api_request(request, std::move(body));
+  if (options.faults && origin_form_path(api_request.path).starts_with("/api/v1/")) {
+    if (std::optional<ApiResponse> faulted = injected_fault(*options.faults, api_request)) {
+      write_response(*faulted, response);
+      return;
+    }
+  }
+  write_response(handler.handle(api_request), response);
 }
 
 void HttpServer::Impl::handle_with_body(const httplib::Request& request, httplib::Response& response,

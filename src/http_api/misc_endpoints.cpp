@@ -72,10 +72,9 @@ ApiResponse get_time_ptp(Sensor&, const ApiRequest&) {
                         {"time_properties_data_set", json::object()}});
 }
 
-// Keys read by Ouster's HIL tests (protocol doc 2.5, inferred shape). Nothing ever goes wrong here.
-ApiResponse get_alerts(Sensor&, const ApiRequest&) {
-  return json_response({{"active", json::array()}, {"log", json::array()}, {"next_cursor", 0}});
-}
+// Keys read by Ouster's HIL tests (protocol doc 2.5, inferred shape). Alerts come only from an
+// injected ERROR (docs/fault-injection.md).
+ApiResponse get_alerts(Sensor& sensor, const ApiRequest&) { return json_response(sensor.alerts()); }
 
 ApiResponse get_network(Sensor& sensor, const ApiRequest& request) {
   const auto& sn = sensor.identity().prod_sn;

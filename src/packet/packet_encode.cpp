@@ -117,3 +117,26 @@ void PacketFormat::encode(const PacketHeader& header, const Scan& scan, int firs
 }
 
 }  // namespace lidartwin
+
+namespace lidartwin {
+
+bool PacketFormat::has_crc() const { return impl_->crc_footer; }
+
+void PacketFormat::set_frame_id(std::span<uint8_t> packet, uint32_t frame_id) const {
+  const Impl& impl = *impl_;
+  assert(packet.size() == impl.packet_size);
+  const bool crc_was_valid =
+      impl.crc_footer && packet_detail::classify_footer(packet) == std::pair{FooterKind::kCrc64, true};
+  for (const auto& [field, codec] : impl.header) {
+    if (field == packet_detail::HeaderField::kFrameId) codec.set(packet, frame_id & codec.max_value());
+  }
+  for (const auto& [field, codec] : impl.column) {
+    if (field != ColumnField::kFrameId) continue;
+    for (int i = 0; i < impl.format.columns_per_packet; ++i) {
+      codec.set(packet.subspan(impl.column_start(i)), frame_id & 0xFFFF);
+    }
+  }
+  if (crc_was_valid) packet_detail::write_footer(packet, FooterKind::kCrc64);
+}
+
+}  // namespace lidartwin

@@ -4,17 +4,22 @@
 #include <mutex>
 
 #include "lidartwin/frame/forward_model.h"
+#include "lidartwin/json/json_reader.h"
+#include "lidartwin/rig/fault_api.h"
 #include "lidartwin/rig/pose_api.h"
 
 namespace lidartwin {
 
 namespace {
-HttpServerOptions with_pose_api(HttpServerOptions http, LivePoses* live, const Streamer& streamer) {
-  if (!live) return http;
-  http.lidartwin_api = [live, &streamer](const ApiRequest& request) {
-    return live_pose_endpoint(*live, streamer.stats(), request);
-  };
+HttpServerOptions with_extensions(HttpServerOptions http, VirtualSensor& sensor, FaultControl& faults) {
+  http.lidartwin_api = [&sensor](const ApiRequest& request) { return sensor.lidartwin_endpoint(request); };
+  http.faults = &faults;
   return http;
+}
+StreamerOptions with_faults(StreamerOptions options, VirtualSensor& sensor, FaultControl& faults) {
+  options.faults = &faults;
+  options.on_sensor_fault = [&sensor](SensorFaultEvent event) { sensor.on_sensor_fault(event); };
+  return options;
 }
 // The live poses' clock offset (host steady - pose clock) once a pose has come.
 StreamerOptions with_pose_clock(StreamerOptions options, LivePoses* live, bool stamp_pose_clock) {
@@ -38,14 +43,52 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
       max_range_m_(setup.max_range_m),
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
+      faults_(std::move(setup.faults)),
+      fault_timer_(rig.io),
       sensor_(std::move(setup.identity), std::move(setup.sensor)),
-      http_(sensor_, with_pose_api(std::move(setup.http), rig.live, streamer_)),
+      http_(sensor_, with_extensions(std::move(setup.http), *this, faults_)),
       streamer_(
           rig.io,
           [this](const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns) {
             return make_model(config, start_steady_ns, origin_ns);
           },
-          with_pose_clock(std::move(setup.streamer), rig.live, setup.stamp_pose_clock)) {}
+          with_faults(with_pose_clock(std::move(setup.streamer), rig.live, setup.stamp_pose_clock), *this, faults_)) {}
+
+// lidartwin's own endpoints: faults always, live poses when they arrive live.
+ApiResponse VirtualSensor::lidartwin_endpoint(const ApiRequest& request) {
+  const std::string path = origin_form_path(request.path);
+  std::string_view resource(path);
+  resource.remove_prefix(kExtensionPrefix.size());
+  while (resource.ends_with('/')) resource.remove_suffix(1);
+  if (resource == "faults") return fault_endpoint(faults_, seed_, request);
+  if (resource == "pose" && rig_.live) return live_pose_endpoint(*rig_.live, streamer_.stats(), request);
+  throw HttpError(404, "unknown endpoint " + path + ": lidartwin answers /lidartwin/v1/faults" +
+                           (rig_.live ? " and /lidartwin/v1/pose" : " (and /lidartwin/v1/pose with live poses)"));
+}
+
+// On the io thread, where the streamer stopped the session at the frame the plan named.
+void VirtualSensor::on_sensor_fault(SensorFaultEvent event) {
+  const FaultPlan plan = faults_.plan();
+  if (event == SensorFaultEvent::kReset) {
+    sensor_.restart();
+    return;
+  }
+  const bool error = event == SensorFaultEvent::kError;
+  std::optional<SensorAlert> alert;
+  if (error) {
+    alert = SensorAlert{"0x01000015", "OVERTEMP", "ERROR", "Sensor overheating; the sensor stopped.",
+                        "Injected by lidartwin's fault plan (error_at): the sensor stays in ERROR for " +
+                            json_reader::format_number(plan.error_for) + " s, then restarts."};
+  }
+  sensor_.enter_fault_state(error ? "ERROR" : "STANDBY", alert);
+  fault_timer_.expires_after(
+      std::chrono::nanoseconds(static_cast<int64_t>((error ? plan.error_for : plan.standby_for) * 1e9)));
+  fault_timer_.async_wait([this](const asio::error_code& failed) {
+    if (failed) return;
+    sensor_.leave_fault_state();
+    faults_.record("recovered", {{"init_id", sensor_.stream_config()->init_id}});
+  });
+}
 
 VirtualSensor::~VirtualSensor() {
   stop();
@@ -92,7 +135,10 @@ void VirtualSensor::pump_stats(const std::stop_token& stop) {
   }
 }
 
-void VirtualSensor::stop_streaming() { streamer_.stop(); }
+void VirtualSensor::stop_streaming() {
+  fault_timer_.cancel();
+  streamer_.stop();
+}
 
 void VirtualSensor::stop() {
   if (stats_pump_.joinable()) {

@@ -89,6 +89,7 @@ void Sensor::activate_locked(const json& config) {
 }
 
 std::string Sensor::status_locked() const {
+  if (!fault_status_.empty()) return fault_status_;
   if (std::chrono::steady_clock::now() < initializing_until_) return "INITIALIZING";
   return stream_->streaming ? "RUNNING" : "STANDBY";
 }
@@ -146,10 +147,81 @@ void Sensor::reinit() {
   StreamConfigPtr stream;
   {
     std::lock_guard lock(mutex_);
+    if (fault_status_ == "STANDBY") fault_status_.clear();
     activate_locked(staged_);
+    hold_stream_locked();
     stream = stream_;
   }
   notify(stream);
+}
+
+void Sensor::hold_stream_locked() {
+  if (fault_status_.empty() || !stream_->streaming) return;
+  auto held = std::make_shared<StreamConfig>(*stream_);
+  held->streaming = false;
+  ++held->generation;
+  stream_ = std::move(held);
+}
+
+void Sensor::restart() {
+  std::lock_guard notify_lock(notify_mutex_);
+  StreamConfigPtr stream;
+  {
+    std::lock_guard lock(mutex_);
+    const json staged = staged_;
+    activate_locked(active_);
+    staged_ = staged;  // a reset keeps what was staged and not applied, as flash would
+    hold_stream_locked();
+    stream = stream_;
+  }
+  notify(stream);
+}
+
+void Sensor::enter_fault_state(const std::string& status, std::optional<SensorAlert> alert) {
+  std::lock_guard notify_lock(notify_mutex_);
+  StreamConfigPtr stream;
+  {
+    std::lock_guard lock(mutex_);
+    fault_status_ = status;
+    if (alert) {
+      const auto realtime =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch());
+      active_alert_ =
+          json{{"id", alert->id},   {"category", alert->category},       {"level", alert->level},
+               {"msg", alert->msg}, {"msg_verbose", alert->msg_verbose}, {"realtime", std::to_string(realtime.count())},
+               {"active", true},    {"cursor", next_alert_cursor_++}};
+      alert_log_.push_back(*active_alert_);
+    }
+    hold_stream_locked();
+    stream = stream_;
+  }
+  notify(stream);
+}
+
+void Sensor::leave_fault_state() {
+  {
+    std::lock_guard lock(mutex_);
+    if (fault_status_.empty()) return;
+    fault_status_.clear();
+    if (active_alert_) {
+      json cleared = *active_alert_;
+      cleared["active"] = false;
+      cleared["realtime"] = std::to_string(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+              .count());
+      cleared["cursor"] = next_alert_cursor_++;
+      alert_log_.push_back(std::move(cleared));
+      active_alert_.reset();
+    }
+  }
+  restart();
+}
+
+json Sensor::alerts() const {
+  std::lock_guard lock(mutex_);
+  json active = json::array();
+  if (active_alert_) active.push_back(*active_alert_);
+  return {{"active", active}, {"log", alert_log_}, {"next_cursor", next_alert_cursor_}};
 }
 
 void Sensor::persist() {

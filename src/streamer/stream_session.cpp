@@ -18,12 +18,12 @@ asio::steady_timer::time_point steady_time(int64_t ns) {
 }
 }  // namespace
 
-StreamSession::StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters,
+StreamSession::StreamSession(asio::io_context& io, FaultInjector& link, StreamCounters& counters,
                              GroundTruth* ground_truth, std::shared_ptr<const StreamConfig> config,
                              std::unique_ptr<ForwardModel> model, SessionTiming timing, Options options)
     : lidar_timer_(io),
       imu_timer_(io),
-      sender_(sender),
+      link_(link),
       counters_(counters),
       ground_truth_(ground_truth),
       config_(std::move(config)),
@@ -53,7 +53,8 @@ void StreamSession::advance_to(uint64_t time_ns) {
   if (stopped_) return;
   while (packets_per_frame_ > 0 && model_->packet_timestamp_ns(frame_, packet_index_) <= time_ns) {
     counters_.stats.columns_without_pose += model_->render(frame_, packet_index_, packet_index_ + 1, step_);
-    if (sender_.send(config_->udp_dest, config_->udp_port_lidar, model_->packet(step_, packet_index_))) {
+    if (link_.send_lidar(model_->packet(step_, packet_index_), frame_, packet_index_,
+                         model_->packet_columns()[packet_index_], config_->udp_port_lidar)) {
       ++counters_.stats.lidar_packets_sent;
       if (ground_truth_) ground_truth_->packet_sent(*model_, frame_, packet_index_, step_);
     }
@@ -111,7 +112,8 @@ void StreamSession::send_lidar_packet(int64_t now_ns) {
     ++counters_.stats.withheld_packets;
     return;
   }
-  if (sender_.send(config_->udp_dest, config_->udp_port_lidar, bytes)) {
+  if (link_.send_lidar(bytes, frame_, packet_index_, model_->packet_columns()[packet_index_],
+                       config_->udp_port_lidar)) {
     counters_.record_lidar_send(now_ns - lidar_deadline_ns());
     // A blank (stalled) packet was cast with no pose, and its slot may be mid-render: only a packet
     // the worker published (ready, acquire) reports the poses it carries.
@@ -124,6 +126,7 @@ void StreamSession::advance_lidar() {
   if (++packet_index_ < packets_per_frame_) return;
   if (render_) render_->finished(frame_);
   ++counters_.stats.frames_sent;
+  link_.frame_finished(frame_);  // a sensor fault due now stops this session's sending
   ++frame_;
   packet_index_ = 0;
 }
@@ -162,7 +165,7 @@ void StreamSession::on_imu_deadline() {
 void StreamSession::send_imu_packet() {
   std::array<uint8_t, kLegacyImuPacketSize> bytes{};
   model_->imu_packet(imu_index_, bytes);
-  if (sender_.send(config_->udp_dest, config_->udp_port_imu, bytes)) ++counters_.stats.imu_packets_sent;
+  if (link_.send_imu(bytes, imu_index_, config_->udp_port_imu)) ++counters_.stats.imu_packets_sent;
   ++imu_index_;
 }
 

@@ -11,11 +11,11 @@
 
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/sensor/stream_config.h"
+#include "streamer/fault_injector.h"
 #include "streamer/ground_truth.h"
 #include "streamer/render_ahead.h"
 #include "streamer/session_timing.h"
 #include "streamer/stream_counters.h"
-#include "streamer/udp_sender.h"
 
 namespace lidartwin::streamer_detail {
 
@@ -34,7 +34,7 @@ namespace lidartwin::streamer_detail {
 class StreamSession : public std::enable_shared_from_this<StreamSession> {
  public:
   // The session renders ahead with `model` when the lidar stream is on (udp_port_lidar != 0) and
-  // sends IMU packets when send_imu. sender and counters must outlive the session (the Streamer
+  // sends IMU packets when send_imu. link and counters must outlive the session (the Streamer
   // owns them).
   struct Options {
     bool send_imu = false;
@@ -46,8 +46,9 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     // The simulator owns time: no timers; advance_to() casts and sends what is due, in order.
     bool lock_step = false;
   };
-  // ground_truth: where sent columns' poses are written (serve --record), or null.
-  StreamSession(asio::io_context& io, UdpSender& sender, StreamCounters& counters, GroundTruth* ground_truth,
+  // link: the socket, through the fault plan. ground_truth: where sent columns' poses are written
+  // (serve --record), or null.
+  StreamSession(asio::io_context& io, FaultInjector& link, StreamCounters& counters, GroundTruth* ground_truth,
                 std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model, SessionTiming timing,
                 Options options);
   void start();
@@ -72,7 +73,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
 
   asio::steady_timer lidar_timer_;
   asio::steady_timer imu_timer_;
-  UdpSender& sender_;
+  FaultInjector& link_;
   StreamCounters& counters_;
   GroundTruth* ground_truth_;
   std::shared_ptr<const StreamConfig> config_;

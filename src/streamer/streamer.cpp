@@ -7,6 +7,7 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/metadata/metadata.h"
+#include "streamer/fault_injector.h"
 #include "streamer/ground_truth.h"
 #include "streamer/stream_counters.h"
 #include "streamer/stream_session.h"
@@ -53,6 +54,11 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
       make_model_(std::move(make_model)),
       options_(std::move(options)),
       sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
+      faults_(std::make_unique<streamer_detail::FaultInjector>(io, *sender_, options_.faults,
+                                                               [this](SensorFaultEvent event) {
+                                                                 if (options_.on_sensor_fault)
+                                                                   options_.on_sensor_fault(event);
+                                                               })),
       counters_(std::make_unique<streamer_detail::StreamCounters>()),
       ground_truth_(options_.record_dir.empty() ? nullptr
                                                 : std::make_unique<streamer_detail::GroundTruth>(options_.record_dir)),
@@ -77,7 +83,7 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
   stop_session();
   config_ = config;
   if (!config->streaming) {
-    spdlog::info("streamer: STANDBY, not sending (config generation {})", config->generation);
+    spdlog::info("streamer: not sending: STANDBY or a sensor fault (config generation {})", config->generation);
     return;
   }
   if (options_.lock_step) {
@@ -166,8 +172,11 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config, int64_t
   session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
   session_options.withhold_unposed = options_.withhold_unposed;
   session_options.lock_step = options_.lock_step;
+  const bool lidar = config->udp_port_lidar != 0;
+  const std::optional<PacketFormat> packets = lidar ? std::optional<PacketFormat>(model->format()) : std::nullopt;
+  faults_->start_session(*config, packets ? &*packets : nullptr, format.fps);
   session_ = std::make_shared<streamer_detail::StreamSession>(
-      io_, *sender_, *counters_, ground_truth_.get(), std::move(config), std::move(model), timing, session_options);
+      io_, *faults_, *counters_, ground_truth_.get(), std::move(config), std::move(model), timing, session_options);
   session_->start();
 }
 
@@ -175,6 +184,7 @@ void Streamer::stop_session() {
   if (!session_) return;
   session_->stop();
   session_.reset();
+  faults_->end_session();
 }
 
 void Streamer::stop() {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "lidartwin/fault/fault_control.h"
 #include "lidartwin/http_api/request_handler.h"
 #include "lidartwin/sensor/sensor.h"
 
@@ -26,6 +27,9 @@ struct HttpServerOptions {
   std::size_t max_connections = 256;
   // lidartwin's own endpoints (below /lidartwin/v1/, not part of the sensor's API), if any.
   ExtensionEndpoint lidartwin_api = nullptr;
+  // The plan's HTTP faults (http_500, http_delay_ms) for requests below /api/v1/; null: none. Must
+  // outlive the server.
+  FaultControl* faults = nullptr;
 };
 
 // start() could not bind. The message explains what to do (for ports below 1024 the remedies of

@@ -50,6 +50,12 @@ class PacketFormat {
   void encode(const PacketHeader& header, const Scan& scan, int first_column, std::span<uint8_t> out,
               FooterKind footer = FooterKind::kCrc64) const;
 
+  // Whether packets end in a CRC-64 footer (every non-legacy profile but FUSA's).
+  bool has_crc() const;
+  // Rewrites the frame_id of an encoded packet (the header's, or each LEGACY column's) and, where
+  // its footer held a valid CRC, the CRC: what a sensor whose frame counter jumped would send.
+  void set_frame_id(std::span<uint8_t> packet, uint32_t frame_id) const;
+
   struct Decoded {
     PacketHeader header;
     int first_measurement_id = 0;

@@ -10,6 +10,7 @@
 #include <asio.hpp>
 
 #include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/fault/fault_control.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/http_api/http_server.h"
 #include "lidartwin/pose/live_poses.h"
@@ -49,6 +50,8 @@ struct VirtualSensorSetup {
   ImuNoise imu_noise;            // the profile's IMU errors
   // With live poses: packets stamped on the poses' clock (a simulator's time), paced on the host's.
   bool stamp_pose_clock = false;
+  // Faults injected from the start (serve --fault); /lidartwin/v1/faults changes them at run time.
+  FaultPlan faults;
 };
 
 class VirtualSensor {
@@ -73,6 +76,12 @@ class VirtualSensor {
 
   Sensor& sensor() { return sensor_; }
   const HttpServer& http() const { return http_; }
+  FaultControl& faults() { return faults_; }
+
+  // The HTTP server's handler of /lidartwin/v1/ (faults, and live poses when they arrive live).
+  ApiResponse lidartwin_endpoint(const ApiRequest& request);
+  // The streamer's: a sensor fault of the plan is due (io thread).
+  void on_sensor_fault(SensorFaultEvent event);
 
  private:
   std::unique_ptr<ForwardModel> make_model(const StreamConfig& config, int64_t start_steady_ns,
@@ -88,6 +97,8 @@ class VirtualSensor {
   double max_range_m_;
   EffectChain chain_;
   uint64_t seed_;
+  FaultControl faults_;             // before the server and streamer, which read it
+  asio::steady_timer fault_timer_;  // ends an injected STANDBY or ERROR
   Sensor sensor_;
   HttpServer http_;
   Streamer streamer_;

@@ -45,6 +45,16 @@ struct SensorOptions {
   std::chrono::milliseconds initializing_time{0};
 };
 
+// An entry of GET sensor/alerts (protocol doc 2.5: HIL tests read "active" and "log"; each entry
+// has an id such as "0x01000015", a category, a level and messages).
+struct SensorAlert {
+  std::string id;
+  std::string category;
+  std::string level = "ERROR";
+  std::string msg;
+  std::string msg_verbose;
+};
+
 enum class UserDataPolicy { kKeepOnConfigDelete, kClearOnConfigDelete };
 std::string_view to_string(UserDataPolicy policy);  // "keep_on_config_delete", ...
 std::optional<UserDataPolicy> user_data_policy_from_string(std::string_view text);
@@ -87,6 +97,17 @@ class Sensor {
   // active -> saved, written to the state file (atomically) when there is one.
   void persist();
 
+  // The sensor's own faults, as a user injects them (docs/fault-injection.md):
+  // - restart(): as after a reset or power cycle, the active config streams again with a new
+  //   initialization_id;
+  // - enter_fault_state("STANDBY" or "ERROR", alert): that status, nothing streams, and the alert
+  //   (if any) is active in sensor/alerts. A reinit in STANDBY leaves it (as operating_mode NORMAL
+  //   would); ERROR stays until leave_fault_state(), which restarts and logs the alert inactive.
+  void restart();
+  void enter_fault_state(const std::string& status, std::optional<SensorAlert> alert);
+  void leave_fault_state();
+  nlohmann::json alerts() const;  // {"active": [...], "log": [...], "next_cursor": n}
+
   UserData user_data() const;
   void set_user_data(std::string value, UserDataPolicy policy);
   void delete_user_data();
@@ -105,6 +126,7 @@ class Sensor {
 
  private:
   void activate_locked(const nlohmann::json& config);
+  void hold_stream_locked();  // in a fault state: the stream config as activated, but not streaming
   void save_state_locked() const;
   std::string status_locked() const;
   void notify(const StreamConfigPtr& config);
@@ -122,6 +144,10 @@ class Sensor {
   UserData user_data_;
   std::chrono::steady_clock::time_point initializing_until_{};
   StreamStats stats_;
+  std::string fault_status_;  // "" or the injected STANDBY / ERROR
+  std::optional<nlohmann::json> active_alert_;
+  std::vector<nlohmann::json> alert_log_;
+  uint64_t next_alert_cursor_ = 0;
 
   // Held while subscribers run so that they see reinits in order; taken before mutex_.
   std::mutex notify_mutex_;

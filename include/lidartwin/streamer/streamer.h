@@ -13,6 +13,7 @@
 
 #include <asio.hpp>
 
+#include "lidartwin/fault/fault_control.h"
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/sensor/stream_config.h"
 
@@ -23,7 +24,12 @@ class UdpSender;
 class StreamSession;
 struct StreamCounters;
 class GroundTruth;
+class FaultInjector;
 }  // namespace streamer_detail
+
+// The sensor's own faults a FaultPlan schedules (reset_at, standby_at, error_at): the streamer
+// stops the session at the frame where one is due and hands it to whoever owns the sensor.
+enum class SensorFaultEvent { kReset, kStandby, kError };
 
 struct StreamerOptions {
   std::array<uint8_t, 4> source_address{127, 0, 0, 1};  // the sensor's own address (item 8)
@@ -48,6 +54,10 @@ struct StreamerOptions {
   // timestamp = host steady clock - this offset. A config waits for the first pose (nullopt until
   // then); pose_arrived() says when to look again.
   std::function<std::optional<int64_t>()> pose_clock_offset_ns;
+  // Faults injected into what is sent (docs/fault-injection.md); null: none. Must outlive the
+  // streamer. on_sensor_fault runs on the io thread when the plan's sensor event is due.
+  FaultControl* faults = nullptr;
+  std::function<void(SensorFaultEvent)> on_sensor_fault;
 };
 
 // The forward model of a config (its beams, format, signal_multiplier, init_id, prod_sn) whose
@@ -103,6 +113,7 @@ class Streamer {
   ModelFactory make_model_;
   StreamerOptions options_;
   std::unique_ptr<streamer_detail::UdpSender> sender_;
+  std::unique_ptr<streamer_detail::FaultInjector> faults_;  // between the sessions and sender_
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
   std::unique_ptr<streamer_detail::GroundTruth> ground_truth_;  // with record_dir
   asio::steady_timer stats_timer_;
