@@ -61,7 +61,8 @@ void Streamer::warn_if_behind(double render_load) {
                  skipped - warned_skips_, skipped);
   }
   if (sender_->errors() > warned_errors_) {
-    spdlog::warn("streamer: {} UDP sends failed ({} in total)", sender_->errors() - warned_errors_, sender_->errors());
+    spdlog::warn("streamer: {} UDP sends failed ({} in total; the last: {}); streaming goes on",
+                 sender_->errors() - warned_errors_, sender_->errors(), sender_->last_error());
   }
   if (stats.columns_without_pose > warned_unposed_ || stats.withheld_packets > warned_withheld_) {
     spdlog::warn(

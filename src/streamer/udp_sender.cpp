@@ -41,8 +41,11 @@ bool UdpSender::send(Ipv4 destination, uint16_t port, std::span<const uint8_t> d
   socket_.send_to(asio::buffer(datagram.data(), datagram.size()),
                   asio::ip::udp::endpoint(to_address(destination), port), 0, error);
   if (error) {
-    // Logged by the caller's rate-limited stats line; one line per datagram would flood the log.
+    // Logged by the caller's rate-limited stats line; one line per datagram would flood the log. A
+    // destination that is gone (ENETUNREACH, EHOSTUNREACH) or refuses (ECONNREFUSED after an ICMP
+    // port unreachable) costs this datagram only: the next one is tried as if nothing happened.
     ++errors_;
+    last_error_ = "to " + to_address(destination).to_string() + ":" + std::to_string(port) + ": " + error.message();
     return false;
   }
   if (recorder_) record(destination, port, datagram);

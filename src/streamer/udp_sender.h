@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <memory>
 #include <span>
+#include <string>
 
 #include <asio.hpp>
 
@@ -27,6 +28,8 @@ class UdpSender {
   bool send(Ipv4 destination, uint16_t port, std::span<const uint8_t> datagram);
   void close();
   uint64_t errors() const { return errors_; }
+  // The newest failure, e.g. "to 10.0.0.2:7502: Network is unreachable" (io thread).
+  const std::string& last_error() const { return last_error_; }
   uint16_t source_port() const { return source_port_; }
 
  private:
@@ -37,6 +40,7 @@ class UdpSender {
   uint16_t source_port_ = 0;
   std::unique_ptr<PcapWriter> recorder_;  // null unless --record
   uint64_t errors_ = 0;
+  std::string last_error_;
 };
 
 }  // namespace lidartwin::streamer_detail

@@ -7,9 +7,13 @@
 //    second for its SYN to be sent again: the loop took half an hour), no file descriptor or thread
 //    is left behind, and the API still answers at once;
 //  - a UDP destination where nothing listens (ICMP port unreachable for every datagram): the stream
-//    goes on, and a client that binds the port later gets complete scans.
+//    goes on, and a client that binds the port later gets complete scans;
+//  - a UDP destination that disappears from the network and comes back (every send fails with
+//    ENETUNREACH meanwhile): the daemon says why in its log, and the client gets complete scans
+//    again as soon as it is back, with no reinit.
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <sched.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -176,6 +180,43 @@ TEST(Faults, AnUnreachableUdpDestinationDoesNotStopTheStream) {
   ASSERT_EQ(scans.size(), 3u);
   for (size_t k = 1; k < scans.size(); ++k) EXPECT_TRUE(scans[k].complete) << scans[k].packets << " packets";
   EXPECT_EQ(daemon.stop(), 0);
+}
+
+// In a network namespace of its own (this test's process and the daemon it starts; needs root, as
+// CI has), the client's address 10.9.9.2 is taken off the host and put back.
+TEST(Faults, AUdpDestinationThatLeavesTheNetworkAndComesBackGetsCompleteScansAgain) {
+  if (!running_as_root()) GTEST_SKIP() << "a network namespace needs root";
+  ASSERT_EQ(unshare(CLONE_NEWNET), 0) << "unshare(CLONE_NEWNET)";
+  const auto ip = [](const std::string& args) { return std::system(("ip " + args + " 2>&1").c_str()); };
+  ASSERT_EQ(ip("link set lo up"), 0) << "iproute2 (ip) is a test package";
+  ASSERT_EQ(ip("addr add 10.9.9.2/24 dev lo"), 0);
+  Daemon daemon("127.0.0.1", 0, room_args());
+  UdpSocket lidar;  // every address of the namespace, 10.9.9.2 among them
+  SensorHttp http(daemon.address(), daemon.http_port());
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "512x10";
+  request.udp_dest_auto = false;
+  request.extra = {{"udp_dest", "10.9.9.2"}};
+  set_config(http, request);
+  const Metadata metadata = parse(http.get_json("sensor/metadata"));
+  ScanBatcher batcher(metadata.format);
+  ASSERT_EQ(receive_scans(lidar, batcher, 2, std::chrono::seconds(10)).size(), 2u);
+
+  ASSERT_EQ(ip("addr del 10.9.9.2/24 dev lo"), 0);  // no route to it: sendto fails, ENETUNREACH
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  EXPECT_EQ(http.get_json("sensor/metadata/sensor_info").at("status"), "RUNNING");
+  ASSERT_EQ(ip("addr add 10.9.9.2/24 dev lo"), 0);
+  lidar.drain();
+  ScanBatcher again(metadata.format);
+  const auto scans = receive_scans(lidar, again, 3, std::chrono::seconds(10));
+  ASSERT_EQ(scans.size(), 3u);
+  for (const auto& scan : scans) EXPECT_TRUE(scan.complete) << scan.packets << " packets";
+  EXPECT_EQ(daemon.stop(), 0);
+  EXPECT_NE(daemon.log().find("UDP sends failed"), std::string::npos) << daemon.log();
+  EXPECT_NE(daemon.log().find("to 10.9.9.2:" + std::to_string(lidar.port()) + ": Network is unreachable"),
+            std::string::npos)
+      << daemon.log();
 }
 
 }  // namespace
