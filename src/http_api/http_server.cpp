@@ -6,6 +6,7 @@
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -14,6 +15,7 @@
 
 #include "http_api/api_util.h"
 #include "http_api/bind_probe.h"
+#include "http_api/connection_guard.h"
 #include "http_api/connection_threads.h"
 #include "lidartwin/fault/fault_schedule.h"
 #include "lidartwin/http_api/request_handler.h"
@@ -84,6 +86,38 @@ std::optional<ApiResponse> injected_fault(FaultControl& faults, const ApiRequest
 
 }  // namespace
 
+namespace http_detail {
+
+// httplib 0.11 serves each accepted connection in Server::process_and_close_socket, a private
+// virtual function: overriding it is the one place the socket is in reach, to guard it. The
+// library's own version (exported from libcpp-httplib) then serves it, called by its symbol,
+// since C++ offers no other way to call a private base function.
+extern "C" bool lidartwin_httplib_serve_connection(httplib::Server* server,
+                                                   int sock) __asm__("_ZN7httplib6Server24process_and_close_socketEi");
+
+class GuardedServer : public httplib::Server {
+ public:
+  explicit GuardedServer(ConnectionGuard::Options options) : guard_(options) {}
+
+ private:
+  bool process_and_close_socket(socket_t sock) override {
+    if (!guard_.enter(sock)) {
+      ::shutdown(sock, SHUT_RDWR);
+      ::close(sock);
+      return false;
+    }
+    struct Leave {
+      ConnectionGuard& guard;
+      ~Leave() { guard.leave(); }
+    } leave{guard_};
+    return lidartwin_httplib_serve_connection(this, sock);
+  }
+
+  ConnectionGuard guard_;
+};
+
+}  // namespace http_detail
+
 struct HttpServer::Impl {
   Impl(Sensor& sensor, HttpServerOptions server_options)
       : options(std::move(server_options)), handler(sensor, options.lidartwin_api) {}
@@ -96,7 +130,7 @@ struct HttpServer::Impl {
 
   HttpServerOptions options;
   RequestHandler handler;
-  httplib::Server server;
+  http_detail::GuardedServer server{{options.max_connections_per_peer, options.request_deadline}};
   std::thread thread;
   std::atomic<bool> listen_returned{false};
   int port = -1;
@@ -104,6 +138,7 @@ struct HttpServer::Impl {
 };
 
 void HttpServer::Impl::handle(const httplib::Request& request, httplib::Response& response, std::string body) {
+  http_detail::ConnectionGuard::request_answered();
   ApiRequest api_request = to_api_request(request, std::move(body));
   if (options.faults && origin_form_path(api_request.path).starts_with("/api/v1/")) {
     if (std::optional<ApiResponse> faulted = injected_fault(*options.faults, api_request)) {

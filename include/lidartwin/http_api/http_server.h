@@ -25,6 +25,11 @@ struct HttpServerOptions {
   // Connections served at once, each on a thread of its own that starts when a connection finds
   // none idle and ends after 10 s idle; past this many, a connection waits for one to close.
   std::size_t max_connections = 256;
+  // At most this many of them from one address at once (the next is answered 503), and each is
+  // shut down when it has not completed a request within request_deadline of opening or of its
+  // last request: a slow client (slowloris) cannot hold the API away from the others.
+  std::size_t max_connections_per_peer = 64;
+  std::chrono::milliseconds request_deadline{10'000};
   // lidartwin's own endpoints (below /lidartwin/v1/, not part of the sensor's API), if any.
   ExtensionEndpoint lidartwin_api = nullptr;
   // The plan's HTTP faults (http_500, http_delay_ms) for requests below /api/v1/; null: none. Must
