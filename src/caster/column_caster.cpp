@@ -67,13 +67,6 @@ void init_packet(float tnear, float tfar, RTCRayHit16& packet) {
   }
 }
 
-// |cos| of the incidence angle from the geometric normal, for all lanes at once; a degenerate
-// normal (NaN) or rounding above 1 gives 1.
-void incidence_lanes(const RTCRayHit16& packet, float* out) {
-  caster_detail::cos_incidence_lanes(packet.hit.Ng_x, packet.hit.Ng_y, packet.hit.Ng_z, packet.ray.dir_x,
-                                     packet.ray.dir_y, packet.ray.dir_z, out);
-}
-
 // Every pixel starts from this (copied from read-only memory: `ideal = IdealReturn{}` built the
 // 44 bytes on the stack with overlapping stores and copied them out through loads that spanned two
 // of them, a store-forwarding stall per pixel that was 70 % of the caster's own time).
@@ -85,12 +78,56 @@ struct LaneSource {
   std::array<uint16_t, kLanes> k;
 };
 
+// Where each hit lies, measured in this project's own arithmetic: the distance along the ray to the
+// hit triangle's plane and that triangle's normal, from its vertices. Embree decides which triangle
+// a ray hits; its t and Ng come from kernels that differ between SSE, AVX2 and AVX-512 in their
+// last bits (one pixel in ten thousand read a different millimetre), so the same scene cast on two
+// CPUs would not give the same capture. The plane distance in double, without fused multiply-adds
+// (cmake/InstructionSet.cmake), is the same on every CPU. A ray grazing its triangle's plane
+// (dot(d, n) = 0) keeps Embree's t.
+void measure_hits(const RTCRayHit16& packet, const TriangleMesh* meshes, int used, float* t, float* nx, float* ny,
+                  float* nz) {
+  for (int i = 0; i < kLanes; ++i) {
+    const auto lane = static_cast<size_t>(i);
+    t[lane] = packet.ray.tfar[lane];
+    nx[lane] = packet.hit.Ng_x[lane];
+    ny[lane] = packet.hit.Ng_y[lane];
+    nz[lane] = packet.hit.Ng_z[lane];
+    const unsigned geom_id = packet.hit.geomID[lane];
+    if (i >= used || geom_id == RTC_INVALID_GEOMETRY_ID) continue;
+    const TriangleMesh& mesh = meshes[geom_id];
+    const uint32_t* corner = mesh.indices + size_t{3} * packet.hit.primID[lane];
+    const auto vertex = [&mesh](uint32_t k) {
+      const float* v = mesh.vertices + size_t{3} * k;
+      return Eigen::Vector3d(v[0], v[1], v[2]);
+    };
+    const Eigen::Vector3d v0 = vertex(corner[0]);
+    const Eigen::Vector3d n = (vertex(corner[1]) - v0).cross(vertex(corner[2]) - v0);
+    const Eigen::Vector3d origin(packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]);
+    const Eigen::Vector3d direction(packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]);
+    const double along = direction.dot(n);
+    if (along == 0.0) continue;
+    t[lane] = static_cast<float>((v0 - origin).dot(n) / along);
+    nx[lane] = static_cast<float>(n.x());
+    ny[lane] = static_cast<float>(n.y());
+    nz[lane] = static_cast<float>(n.z());
+  }
+}
+
 // The first `used` lanes' hits into their columns' rows; sets retro[c] where a hit is
 // retroreflective.
-void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, const BeamGeometry& geometry,
-               const LaneSource& source, int used, std::span<const ColumnCaster::Column> group, bool* retro) {
+void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* optics, const TriangleMesh* meshes,
+               const BeamGeometry& geometry, const LaneSource& source, int used,
+               std::span<const ColumnCaster::Column> group, bool* retro) {
+  alignas(64) float t[kLanes];
+  alignas(64) float nx[kLanes];
+  alignas(64) float ny[kLanes];
+  alignas(64) float nz[kLanes];
+  measure_hits(packet, meshes, used, t, nx, ny, nz);
+  // |cos| of the incidence angle, all lanes at once; a degenerate normal (NaN) or rounding above 1
+  // gives 1.
   alignas(64) float cos_incidence[kLanes];
-  incidence_lanes(packet, cos_incidence);
+  caster_detail::cos_incidence_lanes(nx, ny, nz, packet.ray.dir_x, packet.ray.dir_y, packet.ray.dir_z, cos_incidence);
   for (int i = 0; i < used; ++i) {
     const auto lane = static_cast<size_t>(i);
     const auto row = static_cast<uint16_t>(geometry.cast_row(source.k[lane]));
@@ -100,7 +137,7 @@ void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* opt
     const unsigned geom_id = packet.hit.geomID[lane];
     if (geom_id == RTC_INVALID_GEOMETRY_ID) continue;
     const ColumnCaster::SurfaceOptics& material = optics[geom_id];
-    ideal.range_m = packet.ray.tfar[lane];
+    ideal.range_m = t[lane];
     ideal.cos_incidence = cos_incidence[lane];
     ideal.reflectivity = material.reflectivity;
     ideal.specular = material.specular;
@@ -196,6 +233,7 @@ ColumnCaster::ColumnCaster(const Scene& scene, const BeamGeometry& geometry, flo
   for (unsigned id = 0; id < scene.geometry_count(); ++id) {
     const Material& m = scene.material(id);
     optics_.push_back({m.reflectivity, m.specular, static_cast<uint8_t>(m.retroreflective ? 1 : 0)});
+    meshes_.push_back(scene.mesh(id));
   }
 }
 
@@ -279,7 +317,7 @@ void ColumnCaster::cast_group(std::span<const Column> group) const {
       transform_lanes(gathered, lanes, packet.ray);
     }
     rtcIntersect16(valid, scene_.embree_scene(), &context, &packet);
-    read_hits(packet, optics_.data(), geometry_, source, used, group, retro.data());
+    read_hits(packet, optics_.data(), meshes_.data(), geometry_, source, used, group, retro.data());
   }
   for (size_t c = 0; c < group.size(); ++c) {
     mark_vertical_edges(group[c].out);

@@ -20,7 +20,7 @@ void remember_error(void* user, RTCError, const char* message) {
   if (first->empty()) *first = message != nullptr ? message : "unknown Embree error";
 }
 
-RTCGeometry make_geometry(RTCDevice device, const scene_detail::MeshPart& part) {
+RTCGeometry make_geometry(RTCDevice device, const scene_detail::MeshPart& part, TriangleMesh& mesh) {
   RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
   const size_t vertex_count = part.vertices.size() / 3;
   const size_t triangle_count = part.indices.size() / 3;
@@ -31,6 +31,7 @@ RTCGeometry make_geometry(RTCDevice device, const scene_detail::MeshPart& part) 
                                           triangle_count);
   if (vertices != nullptr) std::memcpy(vertices, part.vertices.data(), part.vertices.size() * sizeof(float));
   if (indices != nullptr) std::memcpy(indices, part.indices.data(), part.indices.size() * sizeof(uint32_t));
+  mesh = {static_cast<const float*>(vertices), static_cast<const uint32_t*>(indices)};
   rtcCommitGeometry(geometry);
   return geometry;
 }
@@ -42,6 +43,7 @@ struct Scene::Impl {
   RTCScene scene = nullptr;
   std::vector<Material> materials;             // glTF materials, then the default one
   std::vector<unsigned> material_of_geometry;  // geomID → index into materials
+  std::vector<TriangleMesh> meshes;            // geomID → its buffers (Embree owns them)
   size_t triangles = 0;
   std::string embree_error;
 
@@ -70,10 +72,13 @@ Scene Scene::load(const std::filesystem::path& path) {
   const auto default_material = static_cast<unsigned>(impl->materials.size());
   impl->materials.push_back(scene_detail::default_material());
   for (scene_detail::MeshPart& part : content.parts) {
-    RTCGeometry geometry = make_geometry(impl->device, part);
+    TriangleMesh mesh;
+    RTCGeometry geometry = make_geometry(impl->device, part, mesh);
     const unsigned id = rtcAttachGeometry(impl->scene, geometry);
-    rtcReleaseGeometry(geometry);
+    rtcReleaseGeometry(geometry);  // the scene holds it, and so its buffers
     impl->material_of_geometry.resize(id + 1, default_material);
+    impl->meshes.resize(id + 1);
+    impl->meshes[id] = mesh;
     impl->material_of_geometry[id] = part.material < 0 ? default_material : static_cast<unsigned>(part.material);
     impl->triangles += part.indices.size() / 3;
     part = {};  // Embree holds its own copy now
@@ -114,6 +119,7 @@ std::optional<SceneHit> Scene::first_hit(const Eigen::Vector3d& origin, const Ei
   return SceneHit{rh.ray.tfar, rh.hit.geomID, rh.hit.primID, Eigen::Vector3f(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z)};
 }
 
+TriangleMesh Scene::mesh(unsigned geom_id) const { return impl_->meshes.at(geom_id); }
 size_t Scene::triangle_count() const { return impl_->triangles; }
 size_t Scene::geometry_count() const { return impl_->material_of_geometry.size(); }
 

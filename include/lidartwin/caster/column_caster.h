@@ -48,6 +48,7 @@ class ColumnCaster {
   const BeamGeometry& geometry_;
   float max_range_m_;
   std::vector<SurfaceOptics> optics_;
+  std::vector<TriangleMesh> meshes_;  // by geomID: hits are measured on their triangle (read_hits)
 
   void cast_group(std::span<const Column> group) const;  // at most kGroupColumns
 };

@@ -37,6 +37,13 @@ struct SceneHit {
   Eigen::Vector3f normal;  // Embree's geometric normal, world frame, not normalized
 };
 
+// One geometry's triangles as Embree intersects them, world frame: vertex i is
+// vertices[3i .. 3i+2], triangle j joins vertices indices[3j .. 3j+2]. Valid while the Scene lives.
+struct TriangleMesh {
+  const float* vertices = nullptr;
+  const uint32_t* indices = nullptr;
+};
+
 class Scene {
  public:
   // Throws InputError naming the file and the problem (unreadable, not glTF, no triangles…).
@@ -54,6 +61,7 @@ class Scene {
   // `caster`): the first surface with near_m <= distance <= far_m, or nothing.
   std::optional<SceneHit> first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                     float near_m = 0.0f, float far_m = std::numeric_limits<float>::infinity()) const;
+  TriangleMesh mesh(unsigned geom_id) const;
   size_t triangle_count() const;
   size_t geometry_count() const;       // one Embree geometry per placed glTF primitive
   Eigen::AlignedBox3d bounds() const;  // world frame
