@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <iostream>
 #include <memory>
 
 #include <unistd.h>
@@ -198,7 +199,15 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
 
 Steps::Steps() : tty_(isatty(STDERR_FILENO) != 0) {}
 
+// What the command printed on stdout goes first: piped into one log with stderr, a buffered report
+// line would otherwise be cut in two by a step's line.
+static void flush_stdout_before_a_step() {
+  std::cout.flush();
+  std::fflush(stdout);
+}
+
 void Steps::start(const char* what) {
+  flush_stdout_before_a_step();
   what_ = what;
   printed_quarter_ = 0;
   if (tty_) std::fprintf(stderr, "\r%-60s", what);
@@ -221,6 +230,7 @@ void Steps::progress(const char* what, double fraction) const {
 }
 
 void Steps::note(const std::string& what) const {
+  flush_stdout_before_a_step();
   if (tty_) std::fprintf(stderr, "\r%-60s", what.c_str());
   else std::fprintf(stderr, "%s\n", what.c_str());
 }
