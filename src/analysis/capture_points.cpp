@@ -12,6 +12,7 @@
 namespace lidartwin::analysis_detail {
 namespace {
 
+constexpr double kPi = std::numbers::pi;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // a - b wrapped into [-pi, pi).
@@ -135,10 +136,31 @@ BeamProjector::Pixel BeamProjector::from_angles(double azimuth, double elevation
   return {m, r};
 }
 
+double projection_atan2(double y, double x) {
+  // Abramowitz and Stegun 4.4.49: atan(t) on [0, 1] to within 2e-8 rad, a thousandth of a
+  // microradian against pixels 6 mrad apart; folded to the other octants exactly.
+  const double ax = std::abs(x), ay = std::abs(y);
+  const bool steep = ay > ax;
+  const double t = steep ? (ax / ay) : (ay > 0.0 ? ay / ax : 0.0);
+  const double t2 = t * t;
+  double a = 0.0028662257;
+  for (const double c :
+       {-0.0161657367, 0.0429096138, -0.0752896400, 0.1065626393, -0.1420889944, 0.1999355085, -0.3333314528, 1.0}) {
+    a = a * t2 + c;
+  }
+  a *= t;
+  if (steep) a = 0.5 * kPi - a;
+  if (x < 0.0) a = kPi - a;
+  return y < 0.0 ? -a : a;
+}
+
+// The projection runs for every point of every frame, in the registration and the map: libm's
+// atan2 was a tenth of compare --map's time. projection_atan2 is as exact at these scales, and the
+// same on every CPU (libm's picks an FMA variant where it can).
 BeamProjector::Pixel BeamProjector::project(const Eigen::Vector3f& p) const {
   const auto angles = [](const Eigen::Vector3f& v) {
-    return std::pair{std::atan2(static_cast<double>(v.y()), static_cast<double>(v.x())),
-                     std::atan2(static_cast<double>(v.z()), std::hypot(v.x(), v.y()))};
+    const double x = v.x(), y = v.y(), z = v.z();
+    return std::pair{projection_atan2(y, x), projection_atan2(z, std::sqrt(x * x + y * y))};
   };
   auto [azimuth, elevation] = angles(p);
   Pixel pixel = from_angles(azimuth, elevation);

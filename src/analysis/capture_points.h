@@ -47,6 +47,10 @@ std::vector<FramePoints> capture_points(const MeasuredCapture& capture);
 // Places a frame's points in the world: each column by poses.at(its time + time_offset_s).
 void place(FramePoints& frame, const PoseSource& poses, double time_offset_s = 0.0);
 
+// atan2 as the projection computes it: within 2e-8 rad of std::atan2, fast, and the same on every
+// CPU.
+double projection_atan2(double y, double x);
+
 // From a point in a frame's sensor frame back to the pixel whose beam passes nearest: the row
 // whose elevation is nearest, the measurement id whose azimuth (with the row's own azimuth offset)
 // is nearest. The beams' origins (a few centimetres off the sensor's) are allowed for by one

@@ -165,6 +165,19 @@ class MapReferences {
 
  private:
   enum class Fit { kSurface, kRough, kNotOneSurface };
+
+  // The least-squares coefficients of the first P basis terms and (Phi^T Phi)^-1, with fixed-size
+  // matrices (no allocation per pixel); false when the points do not determine them.
+  template <int P>
+  static bool solve_normal_equations(const Eigen::Matrix<double, 6, 6>& normal, const Eigen::Matrix<double, 6, 1>& rhs,
+                                     Surface& s) {
+    const Eigen::LDLT<Eigen::Matrix<double, P, P>> ldlt(normal.template topLeftCorner<P, P>());
+    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return false;
+    s.c.template head<P>() = ldlt.solve(rhs.template head<P>());
+    s.inverse.template topLeftCorner<P, P>() = ldlt.solve(Eigen::Matrix<double, P, P>::Identity());
+    return true;
+  }
+
   static Fit fit(const std::vector<Eigen::Vector3d>& points, Surface& s) {
     const auto n = static_cast<double>(points.size());
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -184,8 +197,11 @@ class MapReferences {
     s.terms = points.size() >= kQuadricPoints ? 6 : 3;
     Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
-    std::vector<Eigen::Vector3d> local;
-    local.reserve(points.size());
+    // Scratch kept by each worker thread: this runs once per pixel, a few hundred thousand times.
+    thread_local std::vector<Eigen::Vector3d> local;
+    thread_local std::vector<double> deviations;
+    thread_local std::vector<double> sorted;
+    local.clear();
     for (const auto& p : points) {
       const Eigen::Vector3d q = p - mean;
       local.emplace_back(s.e_u.dot(q), s.e_v.dot(q), s.e_w.dot(q));
@@ -193,12 +209,9 @@ class MapReferences {
       normal += b * b.transpose();
       rhs += b * local.back().z();
     }
-    const auto p = static_cast<Eigen::Index>(s.terms);
-    const Eigen::MatrixXd a = normal.topLeftCorner(p, p);
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(a);
-    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return Fit::kNotOneSurface;
-    s.c.head(p) = ldlt.solve(rhs.head(p));
-    s.inverse.topLeftCorner(p, p) = ldlt.solve(Eigen::MatrixXd::Identity(p, p));
+    if (s.terms == 6 ? !solve_normal_equations<6>(normal, rhs, s) : !solve_normal_equations<3>(normal, rhs, s)) {
+      return Fit::kNotOneSurface;
+    }
     double rss = 0.0;
     for (const auto& q : local) {
       const double e = q.z() - s.height(q.x(), q.y());
@@ -208,9 +221,9 @@ class MapReferences {
     // One surface at the patch's scale: its roughness well below its extent, and no second surface
     // among its points (a pipe before a wall, the floor beyond a box's edge): at most one of them 5
     // robust deviations off it (a Gaussian puts one of 1.7 million there).
-    std::vector<double> deviations;
+    deviations.clear();
     for (const auto& q : local) deviations.push_back(std::abs(q.z() - s.height(q.x(), q.y())));
-    std::vector<double> sorted = deviations;
+    sorted = deviations;
     const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
     std::nth_element(sorted.begin(), mid, sorted.end());
     const double robust = 1.4826 * *mid;

@@ -1,8 +1,11 @@
 // The way back from a point to the pixel that saw it, on a real capture's beams: every return of
 // the OS-1-128 sample projects back to its own pixel (or, for the few whose beams a neighbour's
 // passes as close, to an adjacent one).
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <string>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -35,6 +38,22 @@ TEST(BeamProjector, EveryReturnOfARealCaptureProjectsBackToItsPixel) {
   ASSERT_GT(returns, 50000u);
   EXPECT_GT(static_cast<double>(exact), 0.95 * static_cast<double>(returns));
   EXPECT_EQ(adjacent, returns);
+}
+
+// The projection's own atan2 against libm's, over every octant, the axes and the origin.
+TEST(BeamProjector, ItsAtan2AgreesWithLibmToTwoHundredthsOfAMicroradian) {
+  double worst = 0.0;
+  for (int i = 0; i < 100'000; ++i) {
+    const double angle = -3.2 + 6.4 * i / 100'000.0;
+    for (const double radius : {1e-3, 1.0, 250.0}) {
+      const double y = radius * std::sin(angle), x = radius * std::cos(angle);
+      worst = std::max(worst, std::abs(analysis_detail::projection_atan2(y, x) - std::atan2(y, x)));
+    }
+  }
+  EXPECT_LT(worst, 2e-8);
+  for (const auto& [y, x] : {std::pair{0.0, 1.0}, {1.0, 0.0}, {0.0, -1.0}, {-1.0, 0.0}, {0.0, 0.0}, {2.0, 2.0}}) {
+    EXPECT_NEAR(analysis_detail::projection_atan2(y, x), std::atan2(y, x), 2e-8) << y << ", " << x;
+  }
 }
 
 }  // namespace
