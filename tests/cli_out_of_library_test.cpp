@@ -117,7 +117,7 @@ class MaterialOffset final : public Effect {
     if (std::abs(values[1]) > 0.5) throw InputError("material_offset: /offset_m: must be in [-0.5, 0.5]");
     return std::make_unique<MaterialOffset>(values[0], values[1]);
   }
-  static std::unique_ptr<Effect> make(const nlohmann::json& p, std::string_view) {
+  static std::unique_ptr<Effect> make(const nlohmann::json& p, const lidartwin::json_reader::Location&) {
     return MaterialOffset(0, 0).with_parameters(std::vector<double>{p.at("material"), p.value("offset_m", 0.0)});
   }
 
@@ -153,7 +153,7 @@ class BeamLoss final : public Effect {
     if (values[2] < 0.0 || values[2] > 0.99) throw InputError("beam_loss: /loss: must be in [0, 0.99]");
     return std::make_unique<BeamLoss>(values[0], values[1], values[2]);
   }
-  static std::unique_ptr<Effect> make(const nlohmann::json& p, std::string_view) {
+  static std::unique_ptr<Effect> make(const nlohmann::json& p, const lidartwin::json_reader::Location&) {
     return BeamLoss(0, 0, 0).with_parameters(
         std::vector<double>{p.at("first_beam"), p.at("last_beam"), p.value("loss", 0.0)});
   }
@@ -165,10 +165,12 @@ class BeamLoss final : public Effect {
 
 void register_test_effects() {
   static const bool once = [] {
-    register_effect("test_paint_depth_bias",
-                    [](const nlohmann::json&, std::string_view) { return std::make_unique<PaintDepthBias>(); });
-    register_effect("test_weak_channels",
-                    [](const nlohmann::json&, std::string_view) { return std::make_unique<WeakChannels>(); });
+    register_effect("test_paint_depth_bias", [](const nlohmann::json&, const lidartwin::json_reader::Location&) {
+      return std::make_unique<PaintDepthBias>();
+    });
+    register_effect("test_weak_channels", [](const nlohmann::json&, const lidartwin::json_reader::Location&) {
+      return std::make_unique<WeakChannels>();
+    });
     register_effect("material_offset", MaterialOffset::make);
     register_effect("beam_loss", BeamLoss::make);
     return true;

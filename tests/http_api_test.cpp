@@ -308,30 +308,32 @@ const std::string kApply = "sensor/config?staging=true&reinit=true&persist=false
 
 INSTANTIATE_TEST_SUITE_P(
     BadInput, HttpApiRejects,
-    testing::Values(BadRequest{"POST", kStaged, R"({"udp_dest": })", 400, "line 1, column 14"},
-                    BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10",)", 400, "not valid JSON"},
-                    BadRequest{"POST", kStaged, R"({"udp_port_lidar": "7502"})", 400, "udp_port_lidar"},
-                    BadRequest{"POST", kStaged, R"({"azimuth_window": [0, 400000]})", 400, "azimuth_window"},
-                    BadRequest{"POST", kStaged, R"({"lidar_mode": "1024x15"})", 400, "lidar_mode"},
-                    BadRequest{"POST", kStaged, R"({"signal_multiplier": 4})", 400, "signal_multiplier"},
-                    BadRequest{"POST", kStaged, R"([1, 2])", 400, "JSON object"},
-                    // Valid key plus invalid key with reinit: nothing applied, no reinit.
-                    BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10", "udp_port_imu": 1e9})", 400,
-                               "udp_port_imu"},
-                    BadRequest{"POST", "sensor/config?reinit=maybe", "{}", 400, "reinit"},
-                    BadRequest{"GET", "sensor/config?staging=yes", "", 400, "staging"},
-                    BadRequest{"GET", "sensor/cmd/set_config_param?args=.+%7Bnope", "", 400, "not valid JSON"},
-                    BadRequest{"GET", "sensor/cmd/set_config_param?args=udp_port_lidar+x", "", 400, "udp_port_lidar"},
-                    BadRequest{"GET", "sensor/cmd/get_config_param?args=future", "", 400, "active"},
-                    BadRequest{"GET", "sensor/cmd/get_config_param", "", 400, "args"},
-                    BadRequest{"PUT", "user/data", "42", 400, "JSON string"},
-                    BadRequest{"PUT", "user/data?policy=forever", "\"x\"", 400, "policy"},
-                    BadRequest{"GET", "sensor/nope", "", 404, "unknown endpoint"},
-                    BadRequest{"GET", "/index.html", "", 404, "/api/v1/"},
-                    BadRequest{"GET", "sensor/metadata/nope", "", 404, "lidar_data_format"},
-                    BadRequest{"GET", "zone_monitor/active/zip", "", 404, "zone"},
-                    BadRequest{"DELETE", "sensor/config", "", 405, "GET, POST"},
-                    BadRequest{"POST", "sensor/metadata", "{}", 405, "GET"}));
+    testing::Values(
+        BadRequest{"POST", kStaged, R"({"udp_dest": })", 400, "line 1, column 14"},
+        BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10",)", 400, "not valid JSON"},
+        BadRequest{"POST", kStaged, R"({"udp_port_lidar": "7502"})", 400,
+                   R"(POST sensor/config: /udp_port_lidar: must be an integer in [0, 65535], got a string "7502")"},
+        BadRequest{"POST", kStaged, R"({"azimuth_window": [0, 400000]})", 400, "azimuth_window"},
+        BadRequest{"POST", kStaged, R"({"lidar_mode": "1024x15"})", 400, "lidar_mode"},
+        BadRequest{"POST", kStaged, R"({"signal_multiplier": 4})", 400, "signal_multiplier"},
+        BadRequest{"POST", kStaged, R"([1, 2])", 400, "JSON object"},
+        // Valid key plus invalid key with reinit: nothing applied, no reinit.
+        BadRequest{"POST", kApply, R"({"lidar_mode": "2048x10", "udp_port_imu": 1e9})", 400, "udp_port_imu"},
+        BadRequest{"POST", "sensor/config?reinit=maybe", "{}", 400, "reinit"},
+        BadRequest{"GET", "sensor/config?staging=yes", "", 400, "staging"},
+        BadRequest{"GET", "sensor/cmd/set_config_param?args=.+%7Bnope", "", 400, "not valid JSON"},
+        BadRequest{"GET", "sensor/cmd/set_config_param?args=udp_port_lidar+x", "", 400,
+                   R"(set_config_param args: /udp_port_lidar: must be an integer in [0, 65535], got a string "x")"},
+        BadRequest{"GET", "sensor/cmd/get_config_param?args=future", "", 400, "active"},
+        BadRequest{"GET", "sensor/cmd/get_config_param", "", 400, "args"},
+        BadRequest{"PUT", "user/data", "42", 400, "PUT user/data: /: must be a JSON string, got a number 42"},
+        BadRequest{"PUT", "user/data?policy=forever", "\"x\"", 400, "policy"},
+        BadRequest{"GET", "sensor/nope", "", 404, "unknown endpoint"},
+        BadRequest{"GET", "/index.html", "", 404, "/api/v1/"},
+        BadRequest{"GET", "sensor/metadata/nope", "", 404, "lidar_data_format"},
+        BadRequest{"GET", "zone_monitor/active/zip", "", 404, "zone"},
+        BadRequest{"DELETE", "sensor/config", "", 405, "GET, POST"},
+        BadRequest{"POST", "sensor/metadata", "{}", 405, "GET"}));
 
 TEST_F(HttpApi, WrongMethodListsTheAllowedOnes) {
   const auto result = client().Delete("/api/v1/sensor/config");

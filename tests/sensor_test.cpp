@@ -150,11 +150,14 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Sensor, ErrorNamesEveryBadKey) {
   Sensor sensor(test_identity());
   try {
-    sensor.write_staged({{"lidar_mode", "9x9"}, {"udp_port_imu", "x"}, {"fine_unknown", 1}}, "127.0.0.1");
+    sensor.write_staged({{"lidar_mode", "9x9"}, {"udp_port_imu", "x"}, {"fine_unknown", 1}}, "127.0.0.1",
+                        "POST sensor/config");
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("lidar_mode"));
-    EXPECT_THAT(e.what(), HasSubstr("udp_port_imu"));
+    // Each problem in json_reader's form: the request, the JSON pointer, what was expected.
+    EXPECT_THAT(e.what(), HasSubstr("POST sensor/config: /lidar_mode: must be a lidar mode of this sensor: "));
+    EXPECT_THAT(e.what(),
+                HasSubstr(R"(POST sensor/config: /udp_port_imu: must be an integer in [0, 65535], got a string "x")"));
     EXPECT_THAT(e.what(), testing::Not(HasSubstr("fine_unknown")));
   }
 }
@@ -353,7 +356,11 @@ TEST(Sensor, BadStartInputsNameTheirSource) {
               testing::ThrowsMessage<InputError>(HasSubstr("state.json")));
   std::ofstream(options.state_file, std::ios::trunc) << R"({"lidartwin_state": 1, "config": {"lidar_mode": "77x7"}})";
   EXPECT_THAT([&] { Sensor sensor(test_identity(), options); },
-              testing::ThrowsMessage<InputError>(HasSubstr("lidar_mode")));
+              testing::ThrowsMessage<InputError>(HasSubstr("state.json: /config/lidar_mode: must be a lidar mode")));
+  std::ofstream(options.state_file, std::ios::trunc) << R"({"lidartwin_state": 1, "config": {}, "user_data": 7})";
+  EXPECT_THAT(
+      [&] { Sensor sensor(test_identity(), options); },
+      testing::ThrowsMessage<InputError>(HasSubstr("state.json: /user_data: must be a string, got a number 7")));
 
   SensorOptions overrides;
   overrides.config_overrides = {{"udp_dest", "@auto"}};  // no HTTP peer at start
@@ -374,18 +381,20 @@ TEST(Sensor, UserDataDefaultsToEmptyAndCanBeDeleted) {
 }
 
 TEST(ConfigRules, FirmwareDefaultsAndTheProtocolDocExampleAreValid) {
-  EXPECT_THAT(lidartwin::config_errors(lidartwin::default_config_params(), {}), testing::IsEmpty());
+  const lidartwin::json_reader::Location body{"POST sensor/config", ""};
+  EXPECT_THAT(lidartwin::config_errors(lidartwin::default_config_params(), {}, body), testing::IsEmpty());
   // SDK-written values (protocol doc 2.4 (a)): integers for multipliers >= 1, 0/1 flags.
   auto config = lidartwin::default_config_params();
   config.update({{"signal_multiplier", 2}, {"nmea_ignore_valid_char", 1}, {"udp_port_lidar", 0}});
-  EXPECT_THAT(lidartwin::config_errors(config, {}), testing::IsEmpty());
+  EXPECT_THAT(lidartwin::config_errors(config, {}, body), testing::IsEmpty());
 }
 
 TEST(ConfigRules, ChoicesAreListedQuoted) {
   auto config = lidartwin::default_config_params();
   config["udp_profile_imu"] = "FAST";
-  EXPECT_THAT(lidartwin::config_errors(config, {}),
-              testing::ElementsAre(testing::HasSubstr(R"(must be one of "LEGACY", "ACCEL32_GYRO32_NMEA", "OFF")")));
+  EXPECT_THAT(lidartwin::config_errors(config, {}, {"POST sensor/config", ""}),
+              testing::ElementsAre(R"(POST sensor/config: /udp_profile_imu: must be one of "LEGACY", )"
+                                   R"("ACCEL32_GYRO32_NMEA", "OFF", got a string "FAST")"));
 }
 
 }  // namespace

@@ -133,13 +133,14 @@ TEST(Vibration, TheJitterIsAFunctionOfTheColumnsTimeAndTheUnit) {
 
 TEST(Vibration, BadParametersNameTheEffectAndTheParameter) {
   try {
-    EffectChain::from_json(json::array({vibration(0.1, 0.0, 200.0, 50.0)}), "p.json: /effects");
+    EffectChain::from_json(json::array({vibration(0.1, 0.0, 200.0, 50.0)}),
+                           json_reader::Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/0/band_high_hz: must be above band_low_hz (200), got 50");
   }
   try {
-    EffectChain::from_json(json::array({vibration(3.0, 0.0)}), "p.json: /effects");
+    EffectChain::from_json(json::array({vibration(3.0, 0.0)}), json_reader::Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/0/angular_rms_deg: must be in [0, 1], got 3");

@@ -149,7 +149,7 @@ std::optional<std::pair<int, int>> firmware_version(const std::string& image_rev
 }
 
 EffectChain profile_chain(const SensorProfile& profile) {
-  return EffectChain::from_json(profile.effects, "profile " + profile.name + ": /effects");
+  return EffectChain::from_json(profile.effects, json_reader::Location{"profile " + profile.name, "/effects"});
 }
 
 SensorChoice load_sensor(const std::string& name_or_path) {

@@ -102,9 +102,9 @@ class BeamCalibration final : public Effect {
     std::unique_ptr<Effect> copy;
     if (!tables_) {
       check_count(values.size(), 3, kName);
-      check_number(values[0], json_path(kName, "offset_sigma_m"), kOffsetSigma);
-      check_number(values[1], json_path(kName, "scale_sigma"), kScaleSigma);
-      check_number(values[2], json_path(kName, "unit_seed"), kSeed);
+      check_number(values[0], fitted(kName).child("offset_sigma_m"), kOffsetSigma);
+      check_number(values[1], fitted(kName).child("scale_sigma"), kScaleSigma);
+      check_number(values[2], fitted(kName).child("unit_seed"), kSeed);
       copy = std::make_unique<BeamCalibration>(Unit{values[0], values[1], values[2]});
     } else {
       const size_t n = tables_->offsets_m.size();
@@ -112,8 +112,8 @@ class BeamCalibration final : public Effect {
       Tables t{std::vector<double>(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(n)),
                std::vector<double>(values.begin() + static_cast<std::ptrdiff_t>(n), values.end())};
       for (size_t b = 0; b < n; ++b) {
-        check_number(t.offsets_m[b], json_path(json_path(kName, "offsets_m"), std::to_string(b)), kOffset);
-        check_number(t.scales[b], json_path(json_path(kName, "scales"), std::to_string(b)), kScale);
+        check_number(t.offsets_m[b], fitted(kName).child("offsets_m").child(b), kOffset);
+        check_number(t.scales[b], fitted(kName).child("scales").child(b), kScale);
       }
       copy = std::make_unique<BeamCalibration>(std::move(t));
     }
@@ -127,34 +127,32 @@ class BeamCalibration final : public Effect {
   std::array<Beam, kTabled> beams_{};
 };
 
-std::vector<double> read_table(const nlohmann::json& params, std::string_view source, const char* key, Bounds bounds) {
+std::vector<double> read_table(const nlohmann::json& params, const Location& at, const char* key, Bounds bounds) {
   const auto found = params.find(key);
   if (found == params.end()) return {};
-  const std::string where = json_path(source, key);
-  if (!found->is_array()) fail(where, "must be an array of per-beam values");
-  if (found->size() > kTabled) fail(where, "at most " + std::to_string(kTabled) + " beams");
+  const Location where = at.child(key);
+  if (!found->is_array()) where.fail_expected("an array of per-beam values", *found);
+  if (found->size() > kTabled) where.fail("at most " + std::to_string(kTabled) + " beams");
   std::vector<double> values;
-  for (size_t b = 0; b < found->size(); ++b) {
-    values.push_back(read_number((*found)[b], json_path(where, std::to_string(b)), bounds));
-  }
+  for (size_t b = 0; b < found->size(); ++b) values.push_back(read_number((*found)[b], where.child(b), bounds));
   return values;
 }
 
 }  // namespace
 
-std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source) {
+std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, const Location& at) {
   static constexpr std::array<std::string_view, 5> kKeys{"offset_sigma_m", "scale_sigma", "unit_seed", "offsets_m",
                                                          "scales"};
-  check_keys(params, source, kName, kKeys);
+  check_keys(params, at, kName, kKeys);
   const bool tables = params.contains("offsets_m") || params.contains("scales");
   const bool unit = params.contains("offset_sigma_m") || params.contains("scale_sigma") || params.contains("unit_seed");
   if (tables && unit) {
-    fail(source,
-         "give either a unit (offset_sigma_m, scale_sigma, unit_seed) or per-beam tables (offsets_m, "
-         "scales), not both");
+    at.fail(
+        "give either a unit (offset_sigma_m, scale_sigma, unit_seed) or per-beam tables (offsets_m, "
+        "scales), not both");
   }
   if (tables) {
-    Tables t{read_table(params, source, "offsets_m", kOffset), read_table(params, source, "scales", kScale)};
+    Tables t{read_table(params, at, "offsets_m", kOffset), read_table(params, at, "scales", kScale)};
     const size_t n = std::max(t.offsets_m.size(), t.scales.size());
     t.offsets_m.resize(n, 0.0);
     t.scales.resize(n, 0.0);
@@ -162,13 +160,13 @@ std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std:
   }
   Unit u;
   if (params.contains("offset_sigma_m")) {
-    u.offset_sigma_m = read_number(params["offset_sigma_m"], json_path(source, "offset_sigma_m"), kOffsetSigma);
+    u.offset_sigma_m = read_number(params["offset_sigma_m"], at.child("offset_sigma_m"), kOffsetSigma);
   }
   if (params.contains("scale_sigma")) {
-    u.scale_sigma = read_number(params["scale_sigma"], json_path(source, "scale_sigma"), kScaleSigma);
+    u.scale_sigma = read_number(params["scale_sigma"], at.child("scale_sigma"), kScaleSigma);
   }
   if (params.contains("unit_seed")) {
-    u.unit_seed = read_number(params["unit_seed"], json_path(source, "unit_seed"), kSeed);
+    u.unit_seed = read_number(params["unit_seed"], at.child("unit_seed"), kSeed);
   }
   return std::make_unique<BeamCalibration>(u);
 }

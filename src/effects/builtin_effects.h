@@ -8,26 +8,29 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/effects/effect.h"
+#include "lidartwin/json/json_reader.h"
 
 namespace lidartwin::effects_detail {
 
-std::unique_ptr<Effect> make_radiometry(const nlohmann::json& params, std::string_view source);
-std::unique_ptr<Effect> make_range_noise_linear(const nlohmann::json& params, std::string_view source);
-std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params, std::string_view source);
-std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, std::string_view source);
-std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, std::string_view source);
-std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, std::string_view source);
-std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, std::string_view source);  // E2
-std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, std::string_view source);        // E3
-std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string_view source);         // E4
-std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, std::string_view source);      // E6
-std::unique_ptr<Effect> make_halo(const nlohmann::json& params, std::string_view source);              // E8
-std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, std::string_view source);  // E10
-std::unique_ptr<Effect> make_vibration(const nlohmann::json& params, std::string_view source);         // E11
-std::unique_ptr<Effect> make_drift(const nlohmann::json& params, std::string_view source);             // E12
-std::unique_ptr<Effect> make_fog(const nlohmann::json& params, std::string_view source);               // E13
-std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, std::string_view source);      // E14
-std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, std::string_view source);        // section 2.2
-std::unique_ptr<Effect> make_window(const nlohmann::json& params, std::string_view source);            // E16
+using json_reader::Location;
+
+std::unique_ptr<Effect> make_radiometry(const nlohmann::json& params, const Location& at);
+std::unique_ptr<Effect> make_range_noise_linear(const nlohmann::json& params, const Location& at);
+std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params, const Location& at);
+std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, const Location& at);
+std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, const Location& at);
+std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, const Location& at);
+std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, const Location& at);  // E2
+std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, const Location& at);        // E3
+std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, const Location& at);         // E4
+std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, const Location& at);      // E6
+std::unique_ptr<Effect> make_halo(const nlohmann::json& params, const Location& at);              // E8
+std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, const Location& at);  // E10
+std::unique_ptr<Effect> make_vibration(const nlohmann::json& params, const Location& at);         // E11
+std::unique_ptr<Effect> make_drift(const nlohmann::json& params, const Location& at);             // E12
+std::unique_ptr<Effect> make_fog(const nlohmann::json& params, const Location& at);               // E13
+std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, const Location& at);      // E14
+std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, const Location& at);        // section 2.2
+std::unique_ptr<Effect> make_window(const nlohmann::json& params, const Location& at);            // E16
 
 }  // namespace lidartwin::effects_detail

@@ -55,8 +55,8 @@ class Drift final : public TabledEffect<Drift, DriftParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_drift(const nlohmann::json& params, std::string_view source) {
-  return Drift::create(params, source);
+std::unique_ptr<Effect> make_drift(const nlohmann::json& params, const Location& at) {
+  return Drift::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -110,8 +110,8 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, std::string_view source) {
-  return Dropout::create(params, source);
+std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, const Location& at) {
+  return Dropout::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -13,8 +13,7 @@
 namespace lidartwin {
 namespace {
 
-using effects_detail::fail;
-using effects_detail::json_path;
+using json_reader::Location;
 
 // Each effect draws from its own streams, keyed by its name and place in the chain (FNV-1a of
 // the name, mixed with the position), so adding or refitting one effect leaves the others' noise
@@ -36,28 +35,27 @@ std::shared_ptr<const Effect> placed(const Effect& effect, size_t position) {
 
 std::string registered_list() { return fmt::format("{}", fmt::join(registered_effects(), ", ")); }
 
-std::unique_ptr<Effect> build_effect(const nlohmann::json& element, const std::string& where) {
-  if (!element.is_object()) fail(where, "must be an effect object {\"name\": ..., <parameters>}");
+std::unique_ptr<Effect> build_effect(const nlohmann::json& element, const Location& at) {
+  if (!element.is_object()) at.fail_expected("an effect object {\"name\": ..., <parameters>}", element);
   const auto name = element.find("name");
-  if (name == element.end()) fail(json_path(where, "name"), "missing; registered effects: " + registered_list());
-  if (!name->is_string()) fail(json_path(where, "name"), "must be a string, one of: " + registered_list());
+  if (name == element.end()) at.child("name").fail("missing; registered effects: " + registered_list());
+  if (!name->is_string()) at.child("name").fail_expected("a string, one of: " + registered_list(), *name);
   const auto factory = effects_detail::find_effect(name->get<std::string>());
   if (!factory) {
-    fail(json_path(where, "name"),
-         "unknown effect \"" + name->get<std::string>() + "\"; registered effects: " + registered_list());
+    at.child("name").fail("unknown effect \"" + name->get<std::string>() +
+                          "\"; registered effects: " + registered_list());
   }
-  return (*factory)(element, where);
+  return (*factory)(element, at);
 }
 
 // An effect's prerequisites must sit earlier in the chain.
-void check_order(const std::vector<std::shared_ptr<const Effect>>& effects, std::string_view source) {
+void check_order(const std::vector<std::shared_ptr<const Effect>>& effects, const Location& at) {
   for (size_t i = 0; i < effects.size(); ++i) {
     for (const auto needed : effects[i]->prerequisites()) {
       const bool before = std::any_of(effects.begin(), effects.begin() + static_cast<std::ptrdiff_t>(i),
                                       [&](const auto& e) { return e->name() == needed; });
       if (!before) {
-        fail(json_path(source, std::to_string(i)),
-             std::string(effects[i]->name()) + " needs " + std::string(needed) + " earlier in the chain");
+        at.child(i).fail(std::string(effects[i]->name()) + " needs " + std::string(needed) + " earlier in the chain");
       }
     }
   }
@@ -65,17 +63,19 @@ void check_order(const std::vector<std::shared_ptr<const Effect>>& effects, std:
 
 }  // namespace
 
-EffectChain EffectChain::from_json(const nlohmann::json& document, std::string_view source) {
-  if (!document.is_array()) fail(source, "must be an array of effects [{\"name\": ...}, ...]");
+EffectChain EffectChain::from_json(const nlohmann::json& document, const Location& at) {
+  if (!document.is_array()) at.fail_expected("an array of effects [{\"name\": ...}, ...]", document);
   EffectChain chain;
   for (size_t i = 0; i < document.size(); ++i) {
-    const std::string where = json_path(source, std::to_string(i));
+    const Location where = at.child(i);
     // "source": where the effect's parameters came from (a datasheet, a fit on a capture): for
     // people, not for the effect, which never sees it.
     nlohmann::json params = document[i];
     if (params.is_object()) {
       if (const auto origin = params.find("source"); origin != params.end()) {
-        if (!origin->is_string()) fail(json_path(where, "source"), "must be a string (where the parameters came from)");
+        if (!origin->is_string()) {
+          where.child("source").fail_expected("a string (where the parameters came from)", *origin);
+        }
         params.erase(origin);
       }
     }
@@ -83,7 +83,7 @@ EffectChain EffectChain::from_json(const nlohmann::json& document, std::string_v
     effect->set_stream_id(stream_id_for(effect->name(), i));
     chain.effects_.push_back(std::move(effect));
   }
-  check_order(chain.effects_, source);
+  check_order(chain.effects_, at);
   return chain;
 }
 
@@ -142,7 +142,7 @@ Pose EffectChain::moved_pose(const Pose& world_from_sensor, const ColumnContext&
 EffectChain EffectChain::with_effect(std::shared_ptr<const Effect> effect) const {
   EffectChain chain = *this;
   chain.effects_.push_back(placed(*effect, chain.effects_.size()));
-  check_order(chain.effects_, "effect chain");
+  check_order(chain.effects_, Location{"effect chain", ""});
   return chain;
 }
 
@@ -150,7 +150,7 @@ EffectChain EffectChain::replacing(size_t index, std::shared_ptr<const Effect> e
   assert(index < effects_.size());
   EffectChain chain = *this;
   chain.effects_.at(index) = placed(*effect, index);
-  check_order(chain.effects_, "effect chain");
+  check_order(chain.effects_, Location{"effect chain", ""});
   return chain;
 }
 

@@ -74,8 +74,8 @@ class FalseAlarms final : public TabledEffect<FalseAlarms, FalseAlarmParameters>
 
 }  // namespace
 
-std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, std::string_view source) {
-  return FalseAlarms::create(params, source);
+std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, const Location& at) {
+  return FalseAlarms::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -77,8 +77,6 @@ class Fog final : public TabledEffect<Fog, FogParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_fog(const nlohmann::json& params, std::string_view source) {
-  return Fog::create(params, source);
-}
+std::unique_ptr<Effect> make_fog(const nlohmann::json& params, const Location& at) { return Fog::create(params, at); }
 
 }  // namespace lidartwin::effects_detail

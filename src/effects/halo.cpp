@@ -91,8 +91,6 @@ class Halo final : public TabledEffect<Halo, HaloParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_halo(const nlohmann::json& params, std::string_view source) {
-  return Halo::create(params, source);
-}
+std::unique_ptr<Effect> make_halo(const nlohmann::json& params, const Location& at) { return Halo::create(params, at); }
 
 }  // namespace lidartwin::effects_detail

@@ -69,8 +69,8 @@ class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, std::string_view source) {
-  return Incidence::create(params, source);
+std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, const Location& at) {
+  return Incidence::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -190,8 +190,8 @@ class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters
 
 }  // namespace
 
-std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, std::string_view source) {
-  return MixedPixels::create(params, source);
+std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, const Location& at) {
+  return MixedPixels::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

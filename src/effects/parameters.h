@@ -14,25 +14,27 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/effects/effect.h"
+#include "lidartwin/json/json_reader.h"
 
 namespace lidartwin::effects_detail {
 
-// "file: /effects/2" + "sigma0_m" -> "file: /effects/2/sigma0_m"; a source without a JSON
-// pointer ("file.json", or an effect name) starts one: "file.json: /sigma0_m".
-std::string json_path(std::string_view source, std::string_view token);
-[[noreturn]] void fail(std::string_view where, std::string_view what);
+using json_reader::Location;
 std::string format_number(double value);
 std::string format_range(double lower, double upper);  // "[0, 1]"
 
-// The bounds of one key; `where` is its JSON path.
+// Values given to with_parameters (a fit) come from no file: their messages name the effect,
+// "range_noise_linear: /sigma0_m: must be in [0, 1], got -0.01".
+Location fitted(std::string_view effect);
+
+// The bounds of one key, which may be infinite (an unbounded parameter), unlike json_reader::Range.
 struct Bounds {
   double lower;
   double upper;
 };
-double read_number(const nlohmann::json& value, std::string_view where, Bounds bounds);
-void check_number(double value, std::string_view where, Bounds bounds);
+double read_number(const nlohmann::json& value, const Location& at, Bounds bounds);
+void check_number(double value, const Location& at, Bounds bounds);
 // An object whose keys other than "name" are all in `allowed`.
-void check_keys(const nlohmann::json& params, std::string_view source, std::string_view effect,
+void check_keys(const nlohmann::json& params, const Location& at, std::string_view effect,
                 std::span<const std::string_view> allowed);
 void check_count(size_t got, size_t expected, std::string_view effect);
 
@@ -45,22 +47,22 @@ struct ParameterSpec {
 };
 
 template <class P, size_t N>
-P read_parameters(const nlohmann::json& params, std::string_view source, std::string_view effect,
+P read_parameters(const nlohmann::json& params, const Location& at, std::string_view effect,
                   const std::array<ParameterSpec<P>, N>& specs) {
   std::array<std::string_view, N> names;
   for (size_t i = 0; i < N; ++i) names[i] = specs[i].name;
-  check_keys(params, source, effect, names);
+  check_keys(params, at, effect, names);
   P p{};
   for (const auto& spec : specs) {
     const auto found = params.find(spec.name);
     if (found == params.end()) {
       if (spec.required) {
-        fail(json_path(source, spec.name), "missing; " + std::string(effect) + " needs it, a number in " +
-                                               format_range(spec.bounds.lower, spec.bounds.upper));
+        at.child(spec.name).fail("missing; " + std::string(effect) + " needs it, a number in " +
+                                 format_range(spec.bounds.lower, spec.bounds.upper));
       }
       continue;
     }
-    p.*spec.field = read_number(*found, json_path(source, spec.name), spec.bounds);
+    p.*spec.field = read_number(*found, at.child(spec.name), spec.bounds);
   }
   return p;
 }
@@ -70,7 +72,7 @@ P from_values(std::span<const double> values, std::string_view effect, const std
   check_count(values.size(), N, effect);
   P p{};
   for (size_t i = 0; i < N; ++i) {
-    check_number(values[i], json_path(effect, specs[i].name), specs[i].bounds);
+    check_number(values[i], fitted(effect).child(specs[i].name), specs[i].bounds);
     p.*specs[i].field = values[i];
   }
   return p;
@@ -88,7 +90,7 @@ std::vector<EffectParameter> describe(const P& p, const std::array<ParameterSpec
 
 // The shared part of an effect whose parameters are a flat table (pbrt's Shape::Create pattern):
 // Derived provides kName, kSpecs, a constructor from P, and optionally
-// `static void check(const P&, std::string_view source)` for constraints between parameters.
+// `static void check(const P&, const Location& at)` for constraints between parameters.
 template <class Derived, class P>
 class TabledEffect : public Effect {
  public:
@@ -97,18 +99,18 @@ class TabledEffect : public Effect {
   std::string_view name() const final { return Derived::kName; }
   std::vector<EffectParameter> parameters() const final { return describe(params_, Derived::kSpecs); }
   std::unique_ptr<Effect> with_parameters(std::span<const double> values) const final {
-    auto copy = make(from_values(values, Derived::kName, Derived::kSpecs), Derived::kName);
+    auto copy = make(from_values(values, Derived::kName, Derived::kSpecs), fitted(Derived::kName));
     copy->set_stream_id(stream_id());
     return copy;
   }
-  static std::unique_ptr<Effect> create(const nlohmann::json& params, std::string_view source) {
-    return make(read_parameters(params, source, Derived::kName, Derived::kSpecs), source);
+  static std::unique_ptr<Effect> create(const nlohmann::json& params, const Location& at) {
+    return make(read_parameters(params, at, Derived::kName, Derived::kSpecs), at);
   }
   const P& params() const { return params_; }
 
  private:
-  static std::unique_ptr<Effect> make(const P& params, std::string_view source) {
-    if constexpr (requires { Derived::check(params, source); }) Derived::check(params, source);
+  static std::unique_ptr<Effect> make(const P& params, const Location& at) {
+    if constexpr (requires { Derived::check(params, at); }) Derived::check(params, at);
     return std::make_unique<Derived>(params);
   }
 

@@ -122,8 +122,8 @@ class Radiometry final : public TabledEffect<Radiometry, RadiometryParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_radiometry(const nlohmann::json& params, std::string_view source) {
-  return Radiometry::create(params, source);
+std::unique_ptr<Effect> make_radiometry(const nlohmann::json& params, const Location& at) {
+  return Radiometry::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -31,10 +31,10 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
 
   explicit RangeLimits(const P& p) : TabledEffect(p) {}
 
-  static void check(const P& p, std::string_view source) {
+  static void check(const P& p, const Location& at) {
     if (!(p.min_m < p.max_m)) {
-      fail(json_path(source, "max_m"),
-           "must be greater than min_m (" + format_number(p.min_m) + "), got " + format_number(p.max_m));
+      at.child("max_m").fail("must be greater than min_m (" + format_number(p.min_m) + "), got " +
+                             format_number(p.max_m));
     }
   }
 
@@ -95,8 +95,8 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
 
 }  // namespace
 
-std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, std::string_view source) {
-  return RangeLimits::create(params, source);
+std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, const Location& at) {
+  return RangeLimits::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

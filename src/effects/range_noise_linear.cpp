@@ -38,8 +38,8 @@ class RangeNoiseLinear final
 
 }  // namespace
 
-std::unique_ptr<Effect> make_range_noise_linear(const nlohmann::json& params, std::string_view source) {
-  return RangeNoiseLinear::create(params, source);
+std::unique_ptr<Effect> make_range_noise_linear(const nlohmann::json& params, const Location& at) {
+  return RangeNoiseLinear::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -25,38 +25,38 @@ struct Knot {
   double sigma_m;
 };
 
-std::string knot_path(std::string_view source, size_t index, int component) {
-  return json_path(json_path(json_path(source, "points_m"), std::to_string(index)), std::to_string(component));
+// `at` is the effect's object: points_m/<index>/<component> inside it.
+Location knot_location(const Location& at, size_t index, size_t component) {
+  return at.child("points_m").child(index).child(component);
 }
 
-void check_knots(const std::vector<Knot>& knots, std::string_view source) {
-  if (knots.size() < 2) fail(json_path(source, "points_m"), "needs at least 2 knots [range_m, sigma_m]");
+void check_knots(const std::vector<Knot>& knots, const Location& at) {
+  if (knots.size() < 2) at.child("points_m").fail("needs at least 2 knots [range_m, sigma_m]");
   for (size_t k = 0; k < knots.size(); ++k) {
-    check_number(knots[k].range_m, knot_path(source, k, 0), kKnotRange);
-    check_number(knots[k].sigma_m, knot_path(source, k, 1), kKnotSigma);
+    check_number(knots[k].range_m, knot_location(at, k, 0), kKnotRange);
+    check_number(knots[k].sigma_m, knot_location(at, k, 1), kKnotSigma);
     if (k > 0 && !(knots[k].range_m > knots[k - 1].range_m)) {
-      fail(knot_path(source, k, 0), "must be greater than the previous knot's range " +
-                                        format_number(knots[k - 1].range_m) + ", got " +
-                                        format_number(knots[k].range_m));
+      knot_location(at, k, 0).fail("must be greater than the previous knot's range " +
+                                   format_number(knots[k - 1].range_m) + ", got " + format_number(knots[k].range_m));
     }
   }
 }
 
-std::vector<Knot> read_knots(const nlohmann::json& params, std::string_view source) {
+std::vector<Knot> read_knots(const nlohmann::json& params, const Location& at) {
   static constexpr std::array<std::string_view, 1> kKeys{"points_m"};
-  check_keys(params, source, "range_noise_piecewise", kKeys);
-  const std::string where = json_path(source, "points_m");
+  check_keys(params, at, "range_noise_piecewise", kKeys);
+  const Location where = at.child("points_m");
   const auto points = params.find("points_m");
-  if (points == params.end()) fail(where, "missing; range_noise_piecewise needs [[range_m, sigma_m], ...]");
-  if (!points->is_array()) fail(where, "must be an array of [range_m, sigma_m] pairs");
+  if (points == params.end()) where.fail("missing; range_noise_piecewise needs [[range_m, sigma_m], ...]");
+  if (!points->is_array()) where.fail("must be an array of [range_m, sigma_m] pairs");
   std::vector<Knot> knots;
   for (size_t k = 0; k < points->size(); ++k) {
     const auto& pair = (*points)[k];
-    if (!pair.is_array() || pair.size() != 2) fail(json_path(where, std::to_string(k)), "must be [range_m, sigma_m]");
-    knots.push_back({read_number(pair[0], knot_path(source, k, 0), kKnotRange),
-                     read_number(pair[1], knot_path(source, k, 1), kKnotSigma)});
+    if (!pair.is_array() || pair.size() != 2) where.child(k).fail("must be [range_m, sigma_m]");
+    knots.push_back({read_number(pair[0], knot_location(at, k, 0), kKnotRange),
+                     read_number(pair[1], knot_location(at, k, 1), kKnotSigma)});
   }
-  check_knots(knots, source);
+  check_knots(knots, at);
   return knots;
 }
 
@@ -114,10 +114,10 @@ class RangeNoisePiecewise final : public GaussianRangeNoise<RangeNoisePiecewise,
   }
 
   std::unique_ptr<Effect> with_parameters(std::span<const double> values) const override {
-    if (values.size() % 2 != 0) fail(kName, "expected [range_m, sigma_m] pairs, got an odd count of values");
+    if (values.size() % 2 != 0) fitted(kName).fail("expected [range_m, sigma_m] pairs, got an odd count of values");
     std::vector<Knot> knots;
     for (size_t i = 0; i + 1 < values.size(); i += 2) knots.push_back({values[i], values[i + 1]});
-    check_knots(knots, kName);
+    check_knots(knots, fitted(kName));
     auto copy = std::make_unique<RangeNoisePiecewise>(std::move(knots));
     copy->set_stream_id(stream_id());
     return copy;
@@ -152,8 +152,8 @@ class RangeNoisePiecewise final : public GaussianRangeNoise<RangeNoisePiecewise,
 
 }  // namespace
 
-std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params, std::string_view source) {
-  return std::make_unique<RangeNoisePiecewise>(read_knots(params, source));
+std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params, const Location& at) {
+  return std::make_unique<RangeNoisePiecewise>(read_knots(params, at));
 }
 
 }  // namespace lidartwin::effects_detail

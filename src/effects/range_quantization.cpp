@@ -55,8 +55,8 @@ class RangeQuantization final : public TabledEffect<RangeQuantization, Quantizat
 
 }  // namespace
 
-std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, std::string_view source) {
-  return RangeQuantization::create(params, source);
+std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, const Location& at) {
+  return RangeQuantization::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -55,8 +55,8 @@ class RangeWalk final : public TabledEffect<RangeWalk, RangeWalkParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, std::string_view source) {
-  return RangeWalk::create(params, source);
+std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, const Location& at) {
+  return RangeWalk::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -67,8 +67,8 @@ class ShotNoise final : public TabledEffect<ShotNoise, ShotNoiseParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, std::string_view source) {
-  return ShotNoise::create(params, source);
+std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, const Location& at) {
+  return ShotNoise::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

@@ -58,8 +58,8 @@ class SignalPrecision final : public TabledEffect<SignalPrecision, SignalPrecisi
 
 }  // namespace
 
-std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, std::string_view source) {
-  return SignalPrecision::create(params, source);
+std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, const Location& at) {
+  return SignalPrecision::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

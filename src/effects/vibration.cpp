@@ -59,10 +59,11 @@ class Vibration final : public TabledEffect<Vibration, VibrationParameters> {
       {"band_high_hz", &P::band_high_hz, {0.1, 10000.0}},
       {"unit_seed", &P::unit_seed, {0.0, 4294967295.0}},
   }};
-  static void check(const P& p, std::string_view source) {
+  static void check(const P& p, const Location& at) {
     if (!(p.band_high_hz > p.band_low_hz)) {
-      fail(json_path(source, "band_high_hz"),
-           "must be above band_low_hz (" + format_number(p.band_low_hz) + "), got " + format_number(p.band_high_hz));
+      at.child("band_high_hz")
+          .fail("must be above band_low_hz (" + format_number(p.band_low_hz) + "), got " +
+                format_number(p.band_high_hz));
     }
   }
   explicit Vibration(const P& p) : TabledEffect(p) {
@@ -115,8 +116,8 @@ class Vibration final : public TabledEffect<Vibration, VibrationParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_vibration(const nlohmann::json& params, std::string_view source) {
-  return Vibration::create(params, source);
+std::unique_ptr<Effect> make_vibration(const nlohmann::json& params, const Location& at) {
+  return Vibration::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

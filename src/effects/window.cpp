@@ -79,8 +79,8 @@ class Window final : public TabledEffect<Window, WindowParameters> {
 
 }  // namespace
 
-std::unique_ptr<Effect> make_window(const nlohmann::json& params, std::string_view source) {
-  return Window::create(params, source);
+std::unique_ptr<Effect> make_window(const nlohmann::json& params, const Location& at) {
+  return Window::create(params, at);
 }
 
 }  // namespace lidartwin::effects_detail

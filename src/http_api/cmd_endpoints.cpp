@@ -38,12 +38,12 @@ ApiResponse set_config_param(Sensor& sensor, const ApiRequest& request) {
     const auto parsed = nlohmann::json::parse(value, nullptr, false);
     partial = {{key, parsed.is_discarded() ? nlohmann::json(value) : parsed}};
   }
-  sensor.write_staged(partial, request.peer_ip);
+  sensor.write_staged(partial, request.peer_ip, "set_config_param args");
   return json_response("set_config_param");
 }
 
 ApiResponse set_udp_dest_auto(Sensor& sensor, const ApiRequest& request) {
-  sensor.write_staged({{"udp_dest", "@auto"}}, request.peer_ip);
+  sensor.write_staged({{"udp_dest", "@auto"}}, request.peer_ip, "set_udp_dest_auto");
   return json_response(nlohmann::json::object());
 }
 

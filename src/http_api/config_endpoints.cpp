@@ -21,7 +21,7 @@ ApiResponse post_config(Sensor& sensor, const ApiRequest& request) {
   const bool reinit = query_flag(request, "reinit", !staging);
   const bool persist = query_flag(request, "persist", false);
   const auto body = parse_json_body(request, nlohmann::json::object());
-  if (!body.is_object() || !body.empty()) sensor.write_staged(body, request.peer_ip);
+  if (!body.is_object() || !body.empty()) sensor.write_staged(body, request.peer_ip, "POST sensor/config");
   if (reinit) sensor.reinit();
   if (persist) sensor.persist();
   return json_response(reinit ? sensor.active_config() : sensor.staged_config());

@@ -1,5 +1,6 @@
 // Metadata and firmware endpoints (protocol doc 2.3, 2.5, 3.1).
-#include <ranges>
+#include <string>
+#include <vector>
 
 #include <fmt/ranges.h>
 
@@ -19,10 +20,12 @@ ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) { return json_respon
 ApiResponse get_metadata_section(Sensor& sensor, const ApiRequest& request) {
   const std::string name = route_tail(request, "sensor/metadata");
   if (auto section = sensor.metadata_section(name)) return json_response(*section);
+  // A plain loop, not std::views::keys: clang 14 (the fuzz build's) cannot compile libstdc++ 12's
+  // views over a std::map.
   const nlohmann::json document = sensor.metadata();
-  const auto& sections = document.get_ref<const nlohmann::json::object_t&>();
-  throw HttpError(
-      404, fmt::format("no metadata section \"{}\"; sections: {}", name, fmt::join(std::views::keys(sections), ", ")));
+  std::vector<std::string> sections;
+  for (const auto& [key, unused] : document.items()) sections.push_back(key);
+  throw HttpError(404, fmt::format("no metadata section \"{}\"; sections: {}", name, fmt::join(sections, ", ")));
 }
 
 // SDK <= 0.15 detects the FW from this (protocol doc 2.2).

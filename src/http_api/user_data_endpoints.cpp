@@ -2,6 +2,7 @@
 // init_client and open_source fail (protocol doc 1.4).
 #include "http_api/api_util.h"
 #include "http_api/routes.h"
+#include "lidartwin/json/json_reader.h"
 
 namespace lidartwin {
 namespace {
@@ -30,9 +31,8 @@ ApiResponse put_user_data(Sensor& sensor, const ApiRequest& request) {
     policy = *parsed;
   }
   const auto body = parse_json_body(request, nlohmann::json());
-  if (!body.is_string()) {
-    throw HttpError(400, std::string("user data: the body must be a JSON string, got ") + body.type_name());
-  }
+  const json_reader::Location at{"PUT user/data", ""};
+  if (!body.is_string()) at.fail_expected("a JSON string", body);
   sensor.set_user_data(body.get<std::string>(), policy);
   return json_response(with_policy(sensor.user_data()));
 }

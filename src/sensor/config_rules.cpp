@@ -18,27 +18,30 @@
 namespace lidartwin {
 namespace {
 
+using json_reader::Location;
 using nlohmann::json;
-// A problem with the value (what was expected), or nullopt when it is fine.
-using Check = std::function<std::optional<std::string>(const json&)>;
-
-std::string shown(const json& value) { return json_reader::describe(value); }
+// Throws InputError "<source>: /<key>: must be <what>, got <the value>" unless the value is fine.
+using Check = std::function<void(const json&, const Location&)>;
 
 // "a", "b", "c" (fmt's debug format quotes each name).
 std::string quoted_list(const std::vector<std::string>& names) { return fmt::format("{:?}", fmt::join(names, ", ")); }
 
-std::optional<std::string> expected(const std::string& what, const json& value) {
-  return "must be " + what + ", got " + shown(value);
-}
-
-Check one_of(std::vector<std::string> names) {
-  return [names = std::move(names)](const json& v) -> std::optional<std::string> {
-    if (v.is_string() && std::find(names.begin(), names.end(), v.get<std::string>()) != names.end())
-      return std::nullopt;
-    return expected("one of " + quoted_list(names), v);
+// A check from a predicate and what it expects.
+Check expecting(std::string what, std::function<bool(const json&)> accepts) {
+  return [what = std::move(what), accepts = std::move(accepts)](const json& v, const Location& at) {
+    if (!accepts(v)) at.fail_expected(what, v);
   };
 }
 
+Check one_of(std::vector<std::string> names) {
+  const std::string what = "one of " + quoted_list(names);
+  return expecting(what, [names = std::move(names)](const json& v) {
+    return v.is_string() && std::find(names.begin(), names.end(), v.get<std::string>()) != names.end();
+  });
+}
+
+// Integers only: unlike json_reader::read_integer, 7502.0 is refused, as this API always has (the
+// SDK writes integers).
 std::optional<int64_t> as_int64(const json& v) {
   if (v.is_number_unsigned()) {
     const auto u = v.get<uint64_t>();
@@ -50,87 +53,79 @@ std::optional<int64_t> as_int64(const json& v) {
 }
 
 Check integer(int64_t lo, int64_t hi) {
-  return [lo, hi](const json& v) -> std::optional<std::string> {
+  return expecting("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]", [lo, hi](const json& v) {
     const auto i = as_int64(v);
-    if (i && *i >= lo && *i <= hi) return std::nullopt;
-    return expected("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]", v);
-  };
+    return i && *i >= lo && *i <= hi;
+  });
 }
 
 Check integer_in(std::vector<int64_t> allowed) {
-  return [allowed = std::move(allowed)](const json& v) -> std::optional<std::string> {
+  const std::string what = fmt::format("one of {}", fmt::join(allowed, ", "));
+  return expecting(what, [allowed = std::move(allowed)](const json& v) {
     const auto i = as_int64(v);
-    if (i && std::find(allowed.begin(), allowed.end(), *i) != allowed.end()) return std::nullopt;
-    return expected(fmt::format("one of {}", fmt::join(allowed, ", ")), v);
-  };
+    return i && std::find(allowed.begin(), allowed.end(), *i) != allowed.end();
+  });
 }
 
 Check boolean() {
-  return [](const json& v) -> std::optional<std::string> {
-    return v.is_boolean() ? std::nullopt : expected("true or false", v);
-  };
+  return [](const json& v, const Location& at) { json_reader::read_bool(v, at); };
 }
 
 // nmea_ignore_valid_char, auto_start_flag: the FW uses 0/1, some clients send booleans.
 Check zero_or_one() {
-  return [](const json& v) -> std::optional<std::string> {
-    if (v.is_boolean() || (v.is_number_integer() && (v == 0 || v == 1))) return std::nullopt;
-    return expected("0 or 1", v);
-  };
+  return expecting("0 or 1",
+                   [](const json& v) { return v.is_boolean() || (v.is_number_integer() && (v == 0 || v == 1)); });
 }
 
 // 2.4 (a): the SDK only accepts these and writes 1, 2, 3 back as integers.
 Check signal_multiplier() {
-  return [](const json& v) -> std::optional<std::string> {
-    if (v.is_number()) {
-      const double m = v.get<double>();
-      if (m == 0.25 || m == 0.5 || m == 1 || m == 2 || m == 3) return std::nullopt;
-    }
-    return expected("one of 0.25, 0.5, 1, 2, 3", v);
-  };
+  return expecting("one of 0.25, 0.5, 1, 2, 3", [](const json& v) {
+    if (!v.is_number()) return false;
+    const double m = v.get<double>();
+    return m == 0.25 || m == 0.5 || m == 1 || m == 2 || m == 3;
+  });
 }
 
 // udp_dest must be set (an empty one forces the lidar profile to OFF in the SDK, protocol doc
 // 3.1); udp_dest_zm may be empty (= no zone packets).
 Check ipv4_address(bool allow_empty) {
-  return [allow_empty](const json& v) -> std::optional<std::string> {
-    if (v.is_string() && ((allow_empty && v.get<std::string>().empty()) || parse_ipv4(v.get<std::string>())))
-      return std::nullopt;
-    return expected(std::string("an IPv4 address, a host name or \"@auto\"") + (allow_empty ? " or \"\"" : ""), v);
-  };
+  return expecting(std::string("an IPv4 address, a host name or \"@auto\"") + (allow_empty ? " or \"\"" : ""),
+                   [allow_empty](const json& v) {
+                     return v.is_string() &&
+                            ((allow_empty && v.get<std::string>().empty()) || parse_ipv4(v.get<std::string>()));
+                   });
 }
 
 // [start, end] in millidegrees (protocol doc 6.4).
 Check azimuth_window() {
-  return [](const json& v) -> std::optional<std::string> {
-    const bool ok = v.is_array() && v.size() == 2 && std::all_of(v.begin(), v.end(), [](const json& e) {
-                      const auto i = as_int64(e);
-                      return i && *i >= 0 && *i <= 360000;
-                    });
-    return ok ? std::nullopt : expected("[start, end] with integers in [0, 360000]", v);
-  };
+  return expecting("[start, end] with integers in [0, 360000]", [](const json& v) {
+    return v.is_array() && v.size() == 2 && std::all_of(v.begin(), v.end(), [](const json& e) {
+             const auto i = as_int64(e);
+             return i && *i >= 0 && *i <= 360000;
+           });
+  });
 }
 
 // W must be 512/1024/2048/4096 or the SDK throws (protocol doc 2.6); the product narrows it.
 Check lidar_mode(const std::vector<std::string>& supported) {
-  return [supported](const json& v) -> std::optional<std::string> {
+  const std::string what =
+      supported.empty() ? "a lidar mode such as \"1024x10\"" : "a lidar mode of this sensor: " + quoted_list(supported);
+  return expecting(what, [supported](const json& v) {
     const bool parses = v.is_string() && parse_lidar_mode(v.get<std::string>()).has_value();
-    const bool allowed = parses && (supported.empty() || std::find(supported.begin(), supported.end(),
-                                                                   v.get<std::string>()) != supported.end());
-    if (allowed) return std::nullopt;
-    if (supported.empty()) return expected("a lidar mode such as \"1024x10\"", v);
-    return expected("a lidar mode of this sensor: " + quoted_list(supported), v);
-  };
+    return parses && (supported.empty() ||
+                      std::find(supported.begin(), supported.end(), v.get<std::string>()) != supported.end());
+  });
 }
 
 Check udp_profile_lidar(std::vector<std::string> supported) {
   if (supported.empty()) {
     for (auto name : udp_profile_lidar_names()) supported.emplace_back(name);
   }
-  return [check = one_of(supported)](const json& v) -> std::optional<std::string> {
-    if (v.is_string() && !udp_profile_lidar_from_string(v.get<std::string>()))
-      return expected("a lidar profile lidartwin can send", v);
-    return check(v);
+  return [check = one_of(supported)](const json& v, const Location& at) {
+    if (v.is_string() && !udp_profile_lidar_from_string(v.get<std::string>())) {
+      at.fail_expected("a lidar profile lidartwin can send", v);
+    }
+    check(v, at);
   };
 }
 
@@ -201,42 +196,51 @@ std::vector<Rule> rules(const ConfigLimits& limits) {
 // Consumers dereference these without checking (protocol doc 3.1), so they must be present.
 constexpr std::string_view kRequiredKeys[] = {"udp_dest", "udp_port_lidar", "udp_port_imu", "lidar_mode"};
 
-// A packet carries whole columns: columns_per_packet must divide W (protocol doc 4.1).
-std::optional<std::string> columns_per_packet_error(const json& config) {
-  if (!config.contains("columns_per_packet") || !config.contains("lidar_mode")) return {};
-  const auto& cpp = config["columns_per_packet"];
+// A packet carries whole columns: columns_per_packet must divide W (protocol doc 4.1). Runs after
+// both keys passed their own checks.
+void check_columns_per_packet(const json& config, const Location& at) {
+  if (!config.contains("columns_per_packet") || !config.contains("lidar_mode")) return;
+  const auto per_packet = as_int64(config["columns_per_packet"]);
   const auto& mode_text = config["lidar_mode"];
-  const auto per_packet = as_int64(cpp);
-  if (!per_packet || *per_packet <= 0 || !mode_text.is_string()) return {};
+  if (!per_packet || *per_packet <= 0 || !mode_text.is_string()) return;
   const auto mode = parse_lidar_mode(mode_text.get<std::string>());
-  if (!mode || mode->columns_per_frame % *per_packet == 0) return {};
-  return "columns_per_packet: " + std::to_string(*per_packet) + " does not divide the " +
-         std::to_string(mode->columns_per_frame) + " columns of lidar_mode " + mode_text.dump();
+  if (!mode || mode->columns_per_frame % *per_packet == 0) return;
+  at.child("columns_per_packet")
+      .fail(std::to_string(*per_packet) + " does not divide the " + std::to_string(mode->columns_per_frame) +
+            " columns of lidar_mode " + mode_text.dump());
+}
+
+// Runs `check`; its InputError's message joins `errors` instead of propagating, so that one
+// answer names every bad key.
+template <class F>
+void collect(std::vector<std::string>& errors, F&& check) {
+  try {
+    check();
+  } catch (const InputError& e) {
+    errors.emplace_back(e.what());
+  }
 }
 
 }  // namespace
 
-std::vector<std::string> config_errors(const json& config, const ConfigLimits& limits) {
-  if (!config.is_object()) return {"config must be a JSON object, got " + shown(config)};
+std::vector<std::string> config_errors(const json& config, const ConfigLimits& limits, const Location& at) {
   std::vector<std::string> errors;
+  collect(errors, [&] { json_reader::ObjectReader(config, at, {}, json_reader::UnknownKeys::kKeep); });
+  if (!errors.empty()) return errors;
   for (auto key : kRequiredKeys) {
-    if (!config.contains(key)) errors.push_back(std::string(key) + ": missing");
+    if (!config.contains(key)) errors.push_back(at.child(key).to_string() + ": missing");
   }
   for (const auto& rule : rules(limits)) {
     const auto it = config.find(rule.key);
-    if (it == config.end()) continue;
-    if (auto problem = rule.check(*it)) errors.push_back(std::string(rule.key) + ": " + *problem);
+    if (it != config.end()) collect(errors, [&] { rule.check(*it, at.child(rule.key)); });
   }
-  if (auto problem = columns_per_packet_error(config)) errors.push_back(*problem);
+  collect(errors, [&] { check_columns_per_packet(config, at); });
   return errors;
 }
 
-void validate_config(const json& config, const ConfigLimits& limits, const std::string& source) {
-  const auto errors = config_errors(config, limits);
-  if (errors.empty()) return;
-  std::string message = source + ": ";
-  for (size_t i = 0; i < errors.size(); ++i) message += (i ? "; " : "") + errors[i];
-  throw InputError(message);
+void validate_config(const json& config, const ConfigLimits& limits, const Location& at) {
+  const auto errors = config_errors(config, limits, at);
+  if (!errors.empty()) throw InputError(fmt::format("{}", fmt::join(errors, "; ")));
 }
 
 }  // namespace lidartwin

@@ -17,10 +17,10 @@ using nlohmann::json;
 constexpr const char* kDestinationKeys[] = {"udp_dest", "udp_dest_zm", "udp_ip"};
 
 // The destinations a client wrote, resolved now: "@auto" is only meaningful at write time.
-json resolve_destinations(const json& partial, const std::string& peer_ip) {
+json resolve_destinations(const json& partial, const std::string& peer_ip, const json_reader::Location& at) {
   json resolved = partial;
   for (const char* key : kDestinationKeys) {
-    if (partial.contains(key)) resolved[key] = resolve_udp_dest(partial[key], key, peer_ip);
+    if (partial.contains(key)) resolved[key] = resolve_udp_dest(partial[key], at.child(key), peer_ip);
   }
   return resolved;
 }
@@ -37,10 +37,8 @@ json merged(json config, const json& partial) {
   return config;
 }
 
-json checked_object(const json& partial, const std::string& source) {
-  if (!partial.is_object()) {
-    json_reader::Location{source, ""}.fail_expected("a JSON object of config keys", partial);
-  }
+json checked_object(const json& partial, const json_reader::Location& at) {
+  if (!partial.is_object()) at.fail_expected("a JSON object of config keys", partial);
   return partial;
 }
 
@@ -66,11 +64,13 @@ Sensor::Sensor(SensorIdentity identity, SensorOptions options)
       saved_ = merged(saved_, state->config);
       user_data_ = state->user_data;
     }
-    validate_config(saved_, identity_.limits, options_.state_file.string());
+    // The defaults are valid, so what is wrong came from the file's "config" object.
+    validate_config(saved_, identity_.limits, {options_.state_file.string(), "/config"});
   }
-  const json overrides = checked_object(options_.config_overrides, "config overrides");
-  json initial = merged(saved_, resolve_destinations(overrides, ""));
-  validate_config(initial, identity_.limits, "config overrides");
+  const json_reader::Location overrides_at{"config overrides", ""};
+  const json overrides = checked_object(options_.config_overrides, overrides_at);
+  json initial = merged(saved_, resolve_destinations(overrides, "", overrides_at));
+  validate_config(initial, identity_.limits, overrides_at);
   std::lock_guard lock(mutex_);
   activate_locked(initial);
 }
@@ -131,12 +131,13 @@ json Sensor::staged_config() const {
   return staged_;
 }
 
-void Sensor::write_staged(const json& partial, const std::string& peer_ip) {
+void Sensor::write_staged(const json& partial, const std::string& peer_ip, const std::string& source) {
+  const json_reader::Location at{source, ""};
   // Name resolution may block: do it before taking the lock.
-  const json resolved = resolve_destinations(checked_object(partial, "config"), peer_ip);
+  const json resolved = resolve_destinations(checked_object(partial, at), peer_ip, at);
   std::lock_guard lock(mutex_);
   json candidate = merged(staged_, resolved);
-  validate_config(candidate, identity_.limits, "config");
+  validate_config(candidate, identity_.limits, at);
   // The whole result must also describe a stream, so a later reinit cannot fail.
   make_metadata(sensor_info_of(identity_, stream_->init_id), identity_.beams, candidate);
   staged_ = std::move(candidate);

@@ -9,35 +9,35 @@
 #include <system_error>
 
 #include "lidartwin/error.h"
+#include "lidartwin/json/json_reader.h"
 
 namespace lidartwin {
 namespace {
 
 constexpr int kFormatVersion = 1;
 
+// Unknown keys are kept (ignored): a newer lidartwin may add some to the file it writes.
 SavedState parse_state(const nlohmann::json& document, const std::string& source) {
+  const json_reader::Location root{source, ""};
   if (!document.is_object() || document.value("lidartwin_state", nlohmann::json()) != kFormatVersion) {
-    throw InputError(
-        source + ": not a lidartwin state file (expected \"lidartwin_state\": " + std::to_string(kFormatVersion) + ")");
+    root.fail("not a lidartwin state file (expected \"lidartwin_state\": " + std::to_string(kFormatVersion) + ")");
   }
+  const json_reader::ObjectReader reader(document, root, {}, json_reader::UnknownKeys::kKeep);
   SavedState state;
-  const auto config = document.find("config");
-  if (config == document.end() || !config->is_object()) {
-    throw InputError(source + ": /config: must be a JSON object of config keys");
+  const auto& config = reader.at("config", "a JSON object of config keys");
+  if (!config.is_object()) reader.child("config").fail_expected("a JSON object of config keys", config);
+  state.config = config;
+  if (const auto* value = reader.find("user_data")) {
+    state.user_data.value = json_reader::read_string(*value, reader.child("user_data"));
   }
-  state.config = *config;
-  const auto value = document.value("user_data", nlohmann::json(""));
-  if (!value.is_string()) throw InputError(source + ": /user_data: must be a string");
-  state.user_data.value = value.get<std::string>();
-  const auto policy = document.value("user_data_policy", nlohmann::json("clear_on_config_delete"));
-  const auto parsed = policy.is_string() ? user_data_policy_from_string(policy.get<std::string>()) : std::nullopt;
-  if (!parsed) {
-    throw InputError(source +
-                     ": /user_data_policy: must be \"keep_on_config_delete\" or "
-                     "\"clear_on_config_delete\", got " +
-                     policy.dump());
+  if (const auto* policy = reader.find("user_data_policy")) {
+    const auto parsed = policy->is_string() ? user_data_policy_from_string(policy->get<std::string>()) : std::nullopt;
+    if (!parsed) {
+      reader.child("user_data_policy")
+          .fail_expected("\"keep_on_config_delete\" or \"clear_on_config_delete\"", *policy);
+    }
+    state.user_data.policy = *parsed;
   }
-  state.user_data.policy = *parsed;
   return state;
 }
 

@@ -8,7 +8,6 @@
 #include <cstring>
 #include <memory>
 
-#include "lidartwin/error.h"
 #include "lidartwin/sensor/config_rules.h"
 #include "sensor/ipv4.h"
 
@@ -23,22 +22,20 @@ bool starts_with_nocase(std::string_view text, std::string_view prefix) {
 
 // "@auto": the address the HTTP request came from. IPv6 loopback and IPv4-mapped peers map to
 // IPv4 because the streamer sends IPv4 only (the SDK's sockets are dual-stack and receive it).
-std::string peer_ipv4(const std::string& peer_ip, const std::string& key) {
+std::string peer_ipv4(const std::string& peer_ip, const json_reader::Location& at) {
   if (peer_ip.empty()) {
-    throw InputError(key +
-                     ": \"@auto\" means the address of the HTTP client, and there is none "
-                     "here; give an IPv4 address");
+    at.fail("\"@auto\" means the address of the HTTP client, and there is none here; give an IPv4 address");
   }
   if (parse_ipv4(peer_ip)) return peer_ip;
   if (starts_with_nocase(peer_ip, "::ffff:") && parse_ipv4(peer_ip.substr(7))) {
     return peer_ip.substr(7);
   }
   if (peer_ip == "::1") return "127.0.0.1";
-  throw InputError(key + ": \"@auto\" resolved to the IPv6 client address " + peer_ip +
-                   ", but lidartwin streams over IPv4 only; set an IPv4 " + key);
+  at.fail("\"@auto\" resolved to the IPv6 client address " + peer_ip +
+          ", but lidartwin streams over IPv4 only; give an IPv4 address");
 }
 
-std::string resolve_host_name(const std::string& name, const std::string& key) {
+std::string resolve_host_name(const std::string& name, const json_reader::Location& at) {
   addrinfo hints{};
   hints.ai_family = AF_INET;
   hints.ai_socktype = SOCK_DGRAM;
@@ -48,8 +45,8 @@ std::string resolve_host_name(const std::string& name, const std::string& key) {
   char host[NI_MAXHOST] = {};
   if (rc != 0 || found == nullptr ||
       ::getnameinfo(found->ai_addr, found->ai_addrlen, host, sizeof host, nullptr, 0, NI_NUMERICHOST) != 0) {
-    throw InputError(key + ": cannot resolve host name \"" + name + "\" to an IPv4 address" +
-                     (rc != 0 ? std::string(" (") + ::gai_strerror(rc) + ")" : ""));
+    at.fail("cannot resolve host name \"" + name + "\" to an IPv4 address" +
+            (rc != 0 ? std::string(" (") + ::gai_strerror(rc) + ")" : ""));
   }
   return host;
 }
@@ -71,20 +68,14 @@ std::optional<std::array<uint8_t, 4>> parse_ipv4(std::string_view text) {
   return octets;
 }
 
-std::string resolve_udp_dest(const nlohmann::json& value, const std::string& key, const std::string& peer_ip) {
-  if (!value.is_string()) {
-    throw InputError(key + ": must be an IPv4 address, a host name or \"@auto\", got " + value.dump());
-  }
+std::string resolve_udp_dest(const nlohmann::json& value, const json_reader::Location& at, const std::string& peer_ip) {
+  if (!value.is_string()) at.fail_expected("an IPv4 address, a host name or \"@auto\"", value);
   const auto text = value.get<std::string>();
   if (text.empty() || parse_ipv4(text)) return text;  // "" is for the validation to judge
-  if (text == "@auto") return peer_ipv4(peer_ip, key);
-  if (text.find(':') != std::string::npos) {
-    throw InputError(key + ": \"" + text + "\" is IPv6, but lidartwin streams over IPv4 only");
-  }
-  if (looks_numeric(text)) {
-    throw InputError(key + ": \"" + text + "\" is not a valid IPv4 address (expected a.b.c.d)");
-  }
-  return resolve_host_name(text, key);
+  if (text == "@auto") return peer_ipv4(peer_ip, at);
+  if (text.find(':') != std::string::npos) at.fail("\"" + text + "\" is IPv6, but lidartwin streams over IPv4 only");
+  if (looks_numeric(text)) at.fail("\"" + text + "\" is not a valid IPv4 address (expected a.b.c.d)");
+  return resolve_host_name(text, at);
 }
 
 }  // namespace lidartwin

@@ -76,7 +76,7 @@ TEST(BeamCalibration, PerBeamTablesShiftEachBeamByItsOwnValues) {
 TEST(BeamCalibration, AUnitAndTablesTogetherOrValuesOutOfBoundsAreErrors) {
   const auto error_of = [](const json& effect) {
     try {
-      (void)EffectChain::from_json(json::array({effect}), "e10.json: /effects");
+      (void)EffectChain::from_json(json::array({effect}), Location{"e10.json", "/effects"});
     } catch (const lidartwin::InputError& e) {
       return std::string(e.what());
     }
@@ -88,7 +88,7 @@ TEST(BeamCalibration, AUnitAndTablesTogetherOrValuesOutOfBoundsAreErrors) {
   EXPECT_EQ(error_of({{"name", "beam_calibration"}, {"offsets_m", {0.0, 0.7}}}),
             "e10.json: /effects/0/offsets_m/1: must be in [-0.5, 0.5], got 0.7");
   EXPECT_EQ(error_of({{"name", "beam_calibration"}, {"scales", 0.001}}),
-            "e10.json: /effects/0/scales: must be an array of per-beam values");
+            "e10.json: /effects/0/scales: must be an array of per-beam values, got a number 0.001");
 }
 
 }  // namespace

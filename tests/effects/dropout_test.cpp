@@ -19,7 +19,8 @@ TEST(Dropout, NoReturnRateMatchesPrediction) {
 
 TEST(Dropout, NeedsRadiometryEarlierInTheChain) {
   try {
-    EffectChain::from_json(json::array({{{"name", "dropout"}}, {{"name", "radiometry"}}}), "p.json: /effects");
+    EffectChain::from_json(json::array({{{"name", "dropout"}}, {{"name", "radiometry"}}}),
+                           Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/0: dropout needs radiometry earlier in the chain");

@@ -7,9 +7,9 @@
 using namespace effects_test;  // NOLINT(google-build-using-namespace): the shared test helpers
 
 namespace {
-std::string error_of(const json& effects, std::string_view source = "profiles/os1-64.json: /effects") {
+std::string error_of(const json& effects, const Location& at = {"profiles/os1-64.json", "/effects"}) {
   try {
-    EffectChain::from_json(effects, source);
+    EffectChain::from_json(effects, at);
   } catch (const InputError& e) {
     return e.what();
   }
@@ -45,23 +45,23 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
       error_of(json::array({{{"sigma0_m", 0.01}}}))
           .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
   EXPECT_EQ(error_of(json::object()),
-            "profiles/os1-64.json: /effects: must be an array of effects [{\"name\": ...}, ...]");
+            "profiles/os1-64.json: /effects: must be an array of effects [{\"name\": ...}, ...], got an object");
   EXPECT_EQ(error_of(json::array({{{"name", "range_limits"}, {"min_m", 5}, {"max_m", 1}}})),
             "profiles/os1-64.json: /effects/0/max_m: must be greater than min_m (5), got 1");
-  EXPECT_EQ(error_of(json::array({{{"name", "range_quantization"}, {"step_m", true}}}), "file.json"),
+  EXPECT_EQ(error_of(json::array({{{"name", "range_quantization"}, {"step_m", true}}}), Location{"file.json", ""}),
             "file.json: /0/step_m: must be a number in [0, 1], got a boolean true");
 }
 
 TEST(EffectJson, PiecewiseKnotErrors) {
   const auto knots_error = [](const char* knots) {
-    return error_of(json::array({piecewise(json::parse(knots))}), "os0.json: /effects");
+    return error_of(json::array({piecewise(json::parse(knots))}), Location{"os0.json", "/effects"});
   };
   EXPECT_EQ(knots_error("[[1, 0.01]]"), "os0.json: /effects/0/points_m: needs at least 2 knots [range_m, sigma_m]");
   EXPECT_EQ(knots_error("[[1, 0.01], [1, 0.02]]"),
             "os0.json: /effects/0/points_m/1/0: must be greater than the previous knot's range 1, got 1");
   EXPECT_EQ(knots_error("[[1, 0.01], [2, 0]]"), "os0.json: /effects/0/points_m/1/1: must be in [1e-06, 10], got 0");
   EXPECT_EQ(knots_error("[[1, 0.01], [2]]"), "os0.json: /effects/0/points_m/1: must be [range_m, sigma_m]");
-  EXPECT_EQ(error_of(json::array({{{"name", "range_noise_piecewise"}}}), "os0.json: /effects"),
+  EXPECT_EQ(error_of(json::array({{{"name", "range_noise_piecewise"}}}), Location{"os0.json", "/effects"}),
             "os0.json: /effects/0/points_m: missing; range_noise_piecewise needs [[range_m, sigma_m], ...]");
 }
 
@@ -105,12 +105,10 @@ TEST(EffectRegistry, ListsBuiltInsAndAcceptsNewEffects) {
        {"radiometry", "range_noise_linear", "range_noise_piecewise", "range_limits", "range_quantization", "dropout"}) {
     EXPECT_NE(std::find(names.begin(), names.end(), name), names.end()) << name;
   }
-  lidartwin::register_effect("test_alias_of_quantization", [](const json& params, std::string_view source) {
+  lidartwin::register_effect("test_alias_of_quantization", [](const json& params, const Location& at) {
     json copy = params;
     copy["name"] = "range_quantization";
-    return EffectChain::from_json(json::array({copy}), source)
-        .effects()[0]
-        ->with_parameters(std::vector<double>{0.001});
+    return EffectChain::from_json(json::array({copy}), at).effects()[0]->with_parameters(std::vector<double>{0.001});
   });
   EXPECT_EQ(chain_of(json::array({{{"name", "test_alias_of_quantization"}}})).effects().size(), 1u);
   EXPECT_EQ(lidartwin::effect_catalogue("test_alias_of_quantization"), "");
@@ -143,7 +141,7 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
   }
   EXPECT_EQ(lidartwin::effect_catalogue("no_such_effect"), std::nullopt);
   lidartwin::register_effect(
-      "test_fog", [](const json&, std::string_view) -> std::unique_ptr<lidartwin::Effect> { return nullptr; }, "E13");
+      "test_fog", [](const json&, const Location&) -> std::unique_ptr<lidartwin::Effect> { return nullptr; }, "E13");
   EXPECT_EQ(lidartwin::effect_catalogue("test_fog"), "E13");
 }
 
@@ -164,9 +162,9 @@ TEST(Profiles, EveryEffectChainBuilds) {
     std::ifstream in(file);
     const json document = json::parse(in);
     ASSERT_TRUE(document.contains("effects")) << file;
-    const std::string source = "profiles/" + file.filename().string() + ": /effects";
+    const Location at{"profiles/" + file.filename().string(), "/effects"};
     EffectChain chain;
-    ASSERT_NO_THROW(chain = EffectChain::from_json(document.at("effects"), source));
+    ASSERT_NO_THROW(chain = EffectChain::from_json(document.at("effects"), at));
     EXPECT_EQ(chain.effects().size(), document.at("effects").size());
     // A hit inside the profile's range is detected with some noise; no hit stays no return.
     const Prediction p = chain.predict(surface(10.0f, 0.5f), {});

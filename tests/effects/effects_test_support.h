@@ -27,6 +27,7 @@ using lidartwin::IdealReturn;
 using lidartwin::InputError;
 using lidartwin::Measurement;
 using lidartwin::Prediction;
+using lidartwin::json_reader::Location;
 using nlohmann::json;
 
 namespace effects_test {

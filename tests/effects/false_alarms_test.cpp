@@ -72,13 +72,13 @@ TEST(FalseAlarms, DroppedReturnsFireAsOutliers) {
 
 TEST(FalseAlarms, NeedsRadiometryAndBoundedParameters) {
   try {
-    EffectChain::from_json(json::array({false_alarms(0.1)}), "p.json: /effects");
+    EffectChain::from_json(json::array({false_alarms(0.1)}), Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/0: false_alarms needs radiometry earlier in the chain");
   }
   try {
-    EffectChain::from_json(json::array({radiometry_in_sun(10.0), false_alarms(1.5)}), "p.json: /effects");
+    EffectChain::from_json(json::array({radiometry_in_sun(10.0), false_alarms(1.5)}), Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/1/probability_at_reference: must be in [0, 1], got 1.5");

@@ -136,13 +136,14 @@ TEST(Halo, LeavesPixelsAwayFromRetroreflectorsAndTheRetroreflectorItself) {
 
 TEST(Halo, BadParametersNameTheEffectAndTheParameter) {
   try {
-    EffectChain::from_json(json::array({{{"name", "radiometry"}}, halo(0.3, 0.0, 0.0)}), "p.json: /effects");
+    EffectChain::from_json(json::array({{{"name", "radiometry"}}, halo(0.3, 0.0, 0.0)}),
+                           Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), "p.json: /effects/1/decay_rows: must be in [0.1, 20], got 0");
   }
   try {
-    EffectChain::from_json(json::array({halo(0.3, 1.0, 0.0)}), "p.json: /effects");
+    EffectChain::from_json(json::array({halo(0.3, 1.0, 0.0)}), Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/0: halo needs radiometry earlier in the chain");

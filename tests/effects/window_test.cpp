@@ -119,13 +119,14 @@ TEST(Window, NearReturnsComeAtTheirRateAndOrderByStrength) {
 
 TEST(Window, BadParametersNameTheEffectAndTheParameter) {
   try {
-    EffectChain::from_json(json::array({{{"name", "radiometry"}}, window(10.0, 400.0, 0.5)}), "p.json: /effects");
+    EffectChain::from_json(json::array({{{"name", "radiometry"}}, window(10.0, 400.0, 0.5)}),
+                           Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), "p.json: /effects/1/sector_width_deg: must be in [0, 360], got 400");
   }
   try {
-    EffectChain::from_json(json::array({window(10.0, 40.0, 0.5)}), "p.json: /effects");
+    EffectChain::from_json(json::array({window(10.0, 40.0, 0.5)}), Location{"p.json", "/effects"});
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "p.json: /effects/0: window needs radiometry earlier in the chain");

@@ -11,12 +11,15 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/effects/effect.h"
+#include "lidartwin/json/json_reader.h"
 
 namespace lidartwin {
 
-// Registry: effect name -> factory from its JSON parameters. A factory throws InputError naming
-// `source`, the key and the allowed range for a missing, unknown or out-of-range parameter.
-using EffectFactory = std::function<std::unique_ptr<Effect>(const nlohmann::json& params, std::string_view source)>;
+// Registry: effect name -> factory from its JSON parameters, which sit at `at` (the input and the
+// effect object's JSON pointer in it). A factory throws InputError naming `at`'s child, the key and
+// the allowed range for a missing, unknown or out-of-range parameter (json_reader's Location::fail).
+using EffectFactory =
+    std::function<std::unique_ptr<Effect>(const nlohmann::json& params, const json_reader::Location& at)>;
 // catalogue: the effect's id in lidar-physics.md's catalogue ("E4"), so reports can name the
 // physics; empty for effects outside it.
 void register_effect(std::string name, EffectFactory factory, std::string catalogue = "");
@@ -27,12 +30,15 @@ std::vector<std::string> registered_effects();
 class EffectChain {
  public:
   EffectChain() = default;
-  // document: [{"name": "range_noise_linear", "sigma0_m": 0.01, ...}, ...]. source names the file
-  // and the JSON pointer of the array, "profiles/os1-64.json: /effects", so that errors read
-  // "profiles/os1-64.json: /effects/2/sigma0_m: must be in [0, 1], got -0.01" (a source without
-  // ": /" is taken as a file whose document is the array: "file.json: /2/sigma0_m"). Each effect
-  // gets a stream id from its name and position; an effect's prerequisites must come earlier.
-  static EffectChain from_json(const nlohmann::json& document, std::string_view source);
+  // document: [{"name": "range_noise_linear", "sigma0_m": 0.01, ...}, ...], found at `at`: the
+  // file and the array's JSON pointer, {"profiles/os1-64.json", "/effects"}, so that errors read
+  // "profiles/os1-64.json: /effects/2/sigma0_m: must be in [0, 1], got -0.01". Each effect gets a
+  // stream id from its name and position; an effect's prerequisites must come earlier.
+  static EffectChain from_json(const nlohmann::json& document, const json_reader::Location& at);
+  // The same for an input whose whole document is the array ("--add", "test": "test: /2/sigma0_m").
+  static EffectChain from_json(const nlohmann::json& document, std::string_view source) {
+    return from_json(document, json_reader::Location{std::string(source), ""});
+  }
   nlohmann::json to_json() const;
 
   // Measurement from ideal returns (range = ideal range, 0 if no hit), then each effect in order.

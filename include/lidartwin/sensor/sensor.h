@@ -90,8 +90,9 @@ class Sensor {
   // Merges `partial` (a JSON object) into the staged config. "@auto" and host names in
   // udp_dest/udp_dest_zm/udp_ip resolve now, against `peer_ip` (protocol doc 2.7). The resulting
   // config is validated as a whole: either it replaces staged entirely or InputError names every
-  // bad key and staged is unchanged.
-  void write_staged(const nlohmann::json& partial, const std::string& peer_ip);
+  // bad key and staged is unchanged. `source` names the input in those messages, as a
+  // json_reader::Location's source ("POST sensor/config": "POST sensor/config: /lidar_mode: ...").
+  void write_staged(const nlohmann::json& partial, const std::string& peer_ip, const std::string& source = "config");
   // staged -> active, new initialization_id, generation + 1; subscribers are told.
   void reinit();
   // active -> saved, written to the state file (atomically) when there is one.
