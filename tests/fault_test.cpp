@@ -55,6 +55,9 @@ TEST(FaultPlan, BadSpecsNameTheSpecTheKeyAndTheProblem) {
   EXPECT_NE(error_of("error_for=0").find("/error_for"), std::string::npos);
   EXPECT_NE(error_of("loss=0.6,reorder=0.6").find("at most 1"), std::string::npos);
   EXPECT_EQ(error_of("loss=0.01"), "");
+  // Raw bytes that are not UTF-8 (the fault_plan fuzzer's first find): refused, naming the key.
+  const std::string raw("loss=5\0.01*lo\x01\x99\x99", 16);
+  EXPECT_NE(error_of(raw).find("/loss: must be a number"), std::string::npos) << error_of(raw);
 }
 
 // Counts of each fate over many datagrams, and where the losses fall.

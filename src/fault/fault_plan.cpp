@@ -40,6 +40,21 @@ json spec_value(std::string_view text) {
   return std::string(text);
 }
 
+// The spec as a message can show it: bytes outside printable ASCII as \xHH (a NUL would end the
+// message, and raw bytes are no text).
+std::string printable(std::string_view text) {
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte >= 0x20 && byte < 0x7F) {
+      out += c;
+    } else {
+      out += fmt::format("\\x{:02X}", byte);
+    }
+  }
+  return out;
+}
+
 std::string_view trimmed(std::string_view text) {
   while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
   while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
@@ -105,7 +120,7 @@ FaultPlan fault_plan_from_json(const json& document, const std::string& source, 
 }
 
 FaultPlan fault_plan_from_spec(std::string_view spec, uint64_t default_seed) {
-  const std::string source = "--fault \"" + std::string(spec) + "\"";
+  const std::string source = "--fault \"" + printable(spec) + "\"";
   json document = json::object();
   std::string_view rest = spec;
   while (!trimmed(rest).empty()) {

@@ -21,7 +21,9 @@ std::string type_name(const nlohmann::json& value) {
 std::string describe(const nlohmann::json& value) {
   if (value.is_array()) return "an array of " + std::to_string(value.size());
   if (value.is_object() || value.is_null()) return type_name(value);
-  std::string text = value.dump();
+  // Replacing invalid UTF-8: a message about a bad string must not itself fail on it (a --fault
+  // spec of raw bytes made dump() throw out of the error path; found by the fault_plan fuzzer).
+  std::string text = value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   if (text.size() > 40) text = text.substr(0, 37) + "...";
   return type_name(value) + " " + text;
 }
