@@ -170,7 +170,7 @@ TEST(FaultControl, TheLogCountsEachKindAndPagesByCursor) {
   EXPECT_EQ(page["next_cursor"], 5);
   EXPECT_EQ(control.status(5, 10)["events"][0]["kind"], "reorder");
   EXPECT_EQ(control.status(6, 10)["events"].size(), 0u);
-  EXPECT_EQ(page["spec"], "seed=0,loss=0.1,loss_burst=1");
+  EXPECT_EQ(page["spec"], "seed=0,loss=0.1");
   control.set(FaultPlan{});
   EXPECT_GT(control.generation(), generation);
   EXPECT_TRUE(control.plan().empty());

@@ -138,6 +138,8 @@ FaultPlan fault_plan_from_spec(std::string_view spec, uint64_t default_seed) {
   return fault_plan_from_json(document, source, default_seed);
 }
 
+// Every key that differs from the default, so that the plan reads back equal (a frame_jump_by
+// without frame_jump does nothing, but a replay should not depend on knowing that).
 json to_json(const FaultPlan& plan) {
   json out{{"seed", plan.seed}};
   const FaultPlan none;
@@ -145,7 +147,7 @@ json to_json(const FaultPlan& plan) {
     if (value != unset) out[key] = value;
   };
   put("loss", plan.loss, none.loss);
-  if (plan.loss > 0) out["loss_burst"] = plan.loss_burst;
+  put("loss_burst", plan.loss_burst, none.loss_burst);
   put("reorder", plan.reorder, none.reorder);
   put("duplicate", plan.duplicate, none.duplicate);
   put("truncate", plan.truncate, none.truncate);
@@ -153,10 +155,12 @@ json to_json(const FaultPlan& plan) {
   put("delay_ms", plan.delay_ms, none.delay_ms);
   put("jitter_ms", plan.jitter_ms, none.jitter_ms);
   put("frame_jump", plan.frame_jump, none.frame_jump);
-  if (plan.frame_jump > 0) out["frame_jump_by"] = plan.frame_jump_by;
+  put("frame_jump_by", plan.frame_jump_by, none.frame_jump_by);
   if (plan.reset_at) out["reset_at"] = *plan.reset_at;
-  if (plan.standby_at) out["standby_at"] = *plan.standby_at, out["standby_for"] = plan.standby_for;
-  if (plan.error_at) out["error_at"] = *plan.error_at, out["error_for"] = plan.error_for;
+  if (plan.standby_at) out["standby_at"] = *plan.standby_at;
+  put("standby_for", plan.standby_for, none.standby_for);
+  if (plan.error_at) out["error_at"] = *plan.error_at;
+  put("error_for", plan.error_for, none.error_for);
   put("http_500", plan.http_500, none.http_500);
   put("http_delay_ms", plan.http_delay_ms, none.http_delay_ms);
   return out;

@@ -113,6 +113,19 @@ json Sensor::metadata() const {
   return document;
 }
 
+std::string Sensor::metadata_text() const {
+  std::lock_guard lock(mutex_);
+  const std::string status = status_locked();
+  if (metadata_text_.empty() || metadata_text_generation_ != stream_->generation || metadata_text_status_ != status) {
+    json document = metadata_json_;
+    document["sensor_info"]["status"] = status;
+    metadata_text_ = document.dump(-1, ' ', false, json::error_handler_t::replace);
+    metadata_text_generation_ = stream_->generation;
+    metadata_text_status_ = status;
+  }
+  return metadata_text_;
+}
+
 std::optional<json> Sensor::metadata_section(std::string_view name) const {
   if (name == "sensor_info") return sensor_info();
   std::lock_guard lock(mutex_);

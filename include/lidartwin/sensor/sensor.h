@@ -82,6 +82,9 @@ class Sensor {
   // Read side, as served over HTTP (protocol doc 2.3, 2.5, 3.1).
   nlohmann::json sensor_info() const;
   nlohmann::json metadata() const;  // nested document, all 7 sections + imu_data_format
+  // metadata() as the JSON text the API serves, kept until the config or status changes: drivers
+  // and dashboards poll it, and copying and printing the document was most of each request's CPU.
+  std::string metadata_text() const;
   std::optional<nlohmann::json> metadata_section(std::string_view name) const;
   nlohmann::json active_config() const;
   nlohmann::json staged_config() const;
@@ -146,6 +149,9 @@ class Sensor {
   std::chrono::steady_clock::time_point initializing_until_{};
   StreamStats stats_;
   std::string fault_status_;  // "" or the injected STANDBY / ERROR
+  mutable std::string metadata_text_;  // metadata() printed, for metadata_text_status_
+  mutable std::string metadata_text_status_;
+  mutable uint64_t metadata_text_generation_ = 0;
   std::optional<nlohmann::json> active_alert_;
   std::vector<nlohmann::json> alert_log_;
   uint64_t next_alert_cursor_ = 0;
