@@ -55,6 +55,13 @@ std::string printable(std::string_view text) {
   return out;
 }
 
+// The shortest text that reads back as the same double ("0.01", not "0.01000000000000000021").
+std::string shortest(double value) {
+  char buffer[32];
+  const auto [end, error] = std::to_chars(buffer, buffer + sizeof buffer, value);
+  return error == std::errc() ? std::string(buffer, end) : jr::format_number(value);
+}
+
 std::string_view trimmed(std::string_view text) {
   while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
   while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
@@ -173,7 +180,7 @@ std::string to_spec(const FaultPlan& plan) {
     const auto it = document.find(key);
     if (it == document.end()) continue;
     if (!spec.empty()) spec += ',';
-    spec += fmt::format("{}={}", key, it->is_number_float() ? jr::format_number(it->get<double>()) : it->dump());
+    spec += fmt::format("{}={}", key, it->is_number_float() ? shortest(it->get<double>()) : it->dump());
   }
   return spec;
 }
