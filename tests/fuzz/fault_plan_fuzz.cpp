@@ -30,8 +30,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (!(lidartwin::fault_plan_from_spec(lidartwin::to_spec(plan), 0) == plan)) std::abort();
   if (!(lidartwin::fault_plan_from_json(lidartwin::to_json(plan), "to_json", 0) == plan)) std::abort();
   for (uint64_t i = 0; i < 64; ++i) {
-    const lidartwin::DatagramFate fate =
-        lidartwin::datagram_fate(plan, lidartwin::FaultStream::kLidar, 0, i, 1500);
+    const lidartwin::DatagramFate fate = lidartwin::datagram_fate(plan, lidartwin::FaultStream::kLidar, 0, i, 1500);
     if (fate.truncated_to >= 1500 || fate.delay_ns < 0) std::abort();
     (void)lidartwin::frame_jumps(plan, 0, i);
     (void)lidartwin::http_fate(plan, i);

@@ -148,7 +148,7 @@ class Sensor {
   UserData user_data_;
   std::chrono::steady_clock::time_point initializing_until_{};
   StreamStats stats_;
-  std::string fault_status_;  // "" or the injected STANDBY / ERROR
+  std::string fault_status_;           // "" or the injected STANDBY / ERROR
   mutable std::string metadata_text_;  // metadata() printed, for metadata_text_status_
   mutable std::string metadata_text_status_;
   mutable uint64_t metadata_text_generation_ = 0;
