@@ -35,7 +35,10 @@ class SensorHttp {
 
  private:
   static std::string check(const char* method, const std::string& path, const httplib::Result& result) {
-    if (!result) throw std::runtime_error(std::string(method) + " " + path + ": transport error");
+    if (!result) {
+      throw std::runtime_error(std::string(method) + " " + path + ": transport error (" +
+                               httplib::to_string(result.error()) + ")");
+    }
     if (result->status < 200 || result->status > 299) {
       throw std::runtime_error(std::string(method) + " " + path + ": [" + std::to_string(result->status) + "] " +
                                result->body);
