@@ -42,7 +42,7 @@ void FaultControl::record(std::string_view kind, json detail) {
   const bool sensor_event = kind == "reset" || kind == "standby" || kind == "error" || kind == "recovered";
   if (sensor_event) {
     spdlog::warn("faults: {} {}", kind, detail.dump());
-  } else {
+  } else if (spdlog::should_log(spdlog::level::debug)) {  // packet faults: not printed unless asked for
     spdlog::debug("faults: {} {}", kind, detail.dump());
   }
   std::lock_guard lock(mutex_);
