@@ -179,8 +179,8 @@ std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candid
   FeaturePattern pattern;
   PatternAdjustment adjust;
   {
-    const PixelTable now = repredicted(s.table, s.chain);
-    const PixelScores now_scores = score_pixels(now);
+    const PixelTable now = repredicted(s.table, s.chain, s.rows.pool);
+    const PixelScores now_scores = score_pixels(now, 0, s.rows.pool);
     pattern = strongest_pattern(now, now_scores);
     if (!pattern.quantity.empty()) adjust = pattern_adjustment(now, now_scores, pattern);
   }
@@ -190,8 +190,8 @@ std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candid
   const Candidate given = fit(s.table, s.rows, Placement{s.chain, {}}, with_pattern, spec, &adjust);
   if (given.delta_bic >= s.options.min_delta_bic) return std::nullopt;
   const EffectChain with = with_candidate(s.chain, best.effect_json);
-  const PixelTable then = repredicted(s.table, with);
-  const PatternAdjustment after = pattern_adjustment(then, score_pixels(then), pattern);
+  const PixelTable then = repredicted(s.table, with, s.rows.pool);
+  const PatternAdjustment after = pattern_adjustment(then, score_pixels(then, 0, s.rows.pool), pattern);
   const double pattern_given =  // the pattern's delta BIC given the candidate
       2.0 * (s.nll - best.delta_nll - analysis_detail::total_nll(s.table, s.rows, with, &after)) -
       pattern.dof * s.log_n();
@@ -292,8 +292,8 @@ void refit_steps_jointly(Search& s, Diagnosis& d, const std::vector<Step>& steps
 void explain_remaining(const Search& s, Diagnosis& d) {
   MisfitOptions misfit_options;
   misfit_options.alpha = s.options.alpha;
-  const PixelTable final_table = repredicted(s.table, s.chain);
-  const PixelScores final_scores = score_pixels(final_table);
+  const PixelTable final_table = repredicted(s.table, s.chain, s.rows.pool);
+  const PixelScores final_scores = score_pixels(final_table, 0, s.rows.pool);
   const Misfit remaining = find_misfit(final_table, final_scores, s.misfit.summary.frames, misfit_options);
   d.unexplained = explain_misfit(final_table, final_scores, remaining, s.options.alpha);
   d.remaining_failing = remaining.failing.size();
@@ -315,10 +315,10 @@ void explain_remaining(const Search& s, Diagnosis& d) {
 // The failing regions of the profile's chain that no longer fail with `chain` (the whole table
 // rescored).
 std::vector<std::string> repairs(const Search& s, const EffectChain& chain) {
-  const PixelTable with = repredicted(s.table, chain);
+  const PixelTable with = repredicted(s.table, chain, s.rows.pool);
   MisfitOptions misfit_options;
   misfit_options.alpha = s.options.alpha;
-  const Misfit after = find_misfit(with, score_pixels(with), s.misfit.summary.frames, misfit_options);
+  const Misfit after = find_misfit(with, score_pixels(with, 0, s.rows.pool), s.misfit.summary.frames, misfit_options);
   std::set<std::pair<std::string, std::string>> still;
   for (const FailingRegion& f : after.failing) still.insert({f.quantity, describe(f.region)});
   std::vector<std::string> out;

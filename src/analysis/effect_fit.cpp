@@ -84,23 +84,18 @@ double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& ch
 SharedPrefix::SharedPrefix(const PixelTable& t, const FitRows& rows, const EffectChain& chain, size_t count)
     : count_(std::min(count, chain.effects().size())) {
   if (count_ == 0) return;
-  predictions_.reserve(rows.size());
+  predictions_.resize(rows.size());
   const auto& effects = chain.effects();
-  for (const size_t i : rows) {
-    const IdealReturn ideal = t.ideal_of(i);
-    const ColumnContext context = t.context_of(i);
-    Prediction p;
-    p.p_detect = ideal.hit() ? 1.0 : 0.0;  // as EffectChain::predict starts
-    for (size_t e = 0; e < count_; ++e) effects[e]->predict(ideal, context, p);
-    predictions_.push_back(p);
-  }
+  for_each_pixel_chunk(rows.size(), rows.pool, [&](size_t first, size_t last) {
+    for (size_t k = first; k < last; ++k) {
+      const IdealReturn ideal = t.ideal_of(rows[k]);
+      const ColumnContext context = t.context_of(rows[k]);
+      Prediction& p = predictions_[k];
+      p.p_detect = ideal.hit() ? 1.0 : 0.0;  // as EffectChain::predict starts
+      for (size_t e = 0; e < count_; ++e) effects[e]->predict(ideal, context, p);
+    }
+  });
 }
-
-namespace {
-// Rows per chunk of a likelihood sum: small enough to spread 200,000 rows over many workers, large
-// enough that handing out a chunk costs nothing against predicting it.
-constexpr size_t kChunkRows = 4096;
-}  // namespace
 
 namespace {
 
@@ -122,27 +117,16 @@ double row_nll(const PixelTable& t, const FitRows& rows, size_t k, const EffectC
   return pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
 }
 
-// chunk(c, first, last) for each chunk of kChunkRows rows, on the rows' pool where it has workers.
-template <typename Chunk>
-void for_each_chunk(const FitRows& rows, Chunk chunk) {
-  const size_t chunks = (rows.size() + kChunkRows - 1) / kChunkRows;
-  const auto run = [&](size_t c) { chunk(c, c * kChunkRows, std::min(rows.size(), (c + 1) * kChunkRows)); };
-  if (rows.pool && rows.pool->size() > 1 && chunks > 1) {
-    rows.pool->run(static_cast<int>(chunks), [&](int, int c) { run(static_cast<size_t>(c)); });
-  } else {
-    for (size_t c = 0; c < chunks; ++c) run(c);
-  }
-}
-
 }  // namespace
 
 double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const SharedPrefix& prefix,
                  const PatternAdjustment* adjust) {
-  std::vector<double> sums((rows.size() + kChunkRows - 1) / kChunkRows, 0.0);
-  for_each_chunk(rows, [&](size_t c, size_t first, size_t last) {
+  // Summed per chunk of rows, the chunks added in order: the same sum whatever the pool's size.
+  std::vector<double> sums((rows.size() + kPixelChunk - 1) / kPixelChunk, 0.0);
+  for_each_pixel_chunk(rows.size(), rows.pool, [&](size_t first, size_t last) {
     double nll = 0.0;
     for (size_t k = first; k < last; ++k) nll += row_nll(t, rows, k, chain, prefix, adjust);
-    sums[c] = nll;
+    sums[first / kPixelChunk] = nll;
   });
   double nll = 0.0;
   for (const double s : sums) nll += s;  // in chunk order, whichever worker summed each
@@ -152,7 +136,7 @@ double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& ch
 std::vector<double> row_nlls(const PixelTable& t, const FitRows& rows, const EffectChain& chain,
                              const SharedPrefix& prefix, const PatternAdjustment* adjust) {
   std::vector<double> out(rows.size());
-  for_each_chunk(rows, [&](size_t, size_t first, size_t last) {
+  for_each_pixel_chunk(rows.size(), rows.pool, [&](size_t first, size_t last) {
     for (size_t k = first; k < last; ++k) out[k] = row_nll(t, rows, k, chain, prefix, adjust);
   });
   return out;
@@ -210,13 +194,20 @@ Candidate fit_beam_calibration(const PixelTable& t, const FitRows& rows, const P
   std::vector<Sums> beams;
   // Refitted in place (index): the residuals against the chain with its tables zeroed (off).
   const EffectChain base = place.index ? place.chain_with({{"name", "beam_calibration"}}) : place.base;
+  // Each pixel's predicted mean and variance by the workers, then the sums in pixel order.
+  std::vector<std::pair<double, double>> predicted(t.size());
+  for_each_pixel_chunk(t.size(), rows.pool, [&](size_t first, size_t last) {
+    for (size_t i = first; i < last; ++i) {
+      if (t.ideal_range_m[i] <= 0.0f || t.range_m[i] <= 0.0f) continue;
+      Prediction p = base.predict(t.ideal_of(i), t.context_of(i));
+      if (adjust) adjust->apply(i, p);
+      const double step = static_cast<double>(t.step_m[i]);
+      predicted[i] = {static_cast<double>(t.ideal_range_m[i]) + p.bias_m, p.variance_m2 + step * step / 12.0};
+    }
+  });
   for (size_t i = 0; i < t.size(); ++i) {
     if (t.ideal_range_m[i] <= 0.0f || t.range_m[i] <= 0.0f) continue;
-    Prediction p = base.predict(t.ideal_of(i), t.context_of(i));
-    if (adjust) adjust->apply(i, p);
-    const double mean = static_cast<double>(t.ideal_range_m[i]) + p.bias_m;
-    const double step = static_cast<double>(t.step_m[i]);
-    const double variance = p.variance_m2 + step * step / 12.0;
+    const auto [mean, variance] = predicted[i];
     const double e = static_cast<double>(t.range_m[i]) - mean;
     if (variance <= 0.0 || e * e > 25.0 * variance) continue;
     if (t.beam[i] >= beams.size()) beams.resize(t.beam[i] + 1u);

@@ -15,6 +15,7 @@
 #include "analysis/capture_points.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
 #include "lidartwin/error.h"
+#include "lidartwin/frame/wire_context.h"
 #include "lidartwin/packet/lidar_packet.h"
 
 namespace lidartwin {
@@ -335,8 +336,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
   const BeamProjector projector(metadata);
   const MapReferences references(frames, projector, setup.neighbour_frames);
   const PacketFormat packets(format);
-  const double wire_max_m = packets.channel_max(ChannelField::kRange) / 1000.0;
-  const double reach = std::min(setup.max_range_m + 1.0, wire_max_m);
+  const double reach = cast_reach_m(setup.max_range_m, packets);
 
   // Frame by frame (any thread), then gathered in frame order: the table does not depend on threads.
   std::vector<std::vector<KeptPixel>> kept(frames.size());
@@ -399,10 +399,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
   PixelTable& t = out.table;
   t.reference = PixelTable::Reference::kMap;
   t.resize(total);
-  t.context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
-  t.context.max_wire_range_m = static_cast<float>(wire_max_m);
-  t.context.signal_gain = analysis_detail::signal_gain_of(metadata);
-  t.context.columns_per_frame = static_cast<uint32_t>(format.columns_per_frame);
+  t.context = wire_context(packets, analysis_detail::signal_gain_of(metadata));
   double first = std::numeric_limits<double>::infinity();
   for (const FramePoints& f : frames) first = std::min(first, f.start_s);
   t.start_s = capture.start_ns != 0 ? std::min(first, static_cast<double>(capture.start_ns) * 1e-9) : first;

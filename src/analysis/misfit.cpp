@@ -278,7 +278,7 @@ std::string describe(const Region& region) {
   return out;
 }
 
-PixelScores score_pixels(const PixelTable& t, uint64_t seed) {
+PixelScores score_pixels(const PixelTable& t, uint64_t seed, WorkerPool* pool) {
   PixelScores s;
   const size_t n = t.size();
   s.nll.resize(n);
@@ -289,21 +289,23 @@ PixelScores score_pixels(const PixelTable& t, uint64_t seed) {
   s.sd_m.resize(n);
   s.nll_expected.resize(n);
   s.nll_variance.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const RangeModel model = model_of(t, i);
-    // The PIT draw is keyed by the pixel, so reports repeat exactly (DESIGN.md: counter-based noise).
-    RandomStream draw(seed, PixelKey{t.frame[i], t.column[i], t.beam[i]}, 0x5049545Fu);
-    const PixelScore score = score_pixel(model, f64(t.range_m[i]), draw.uniform(0));
-    s.nll[i] = static_cast<float>(score.nll);
-    s.z[i] = static_cast<float>(score.z);
-    s.pit[i] = t.range_m[i] > 0.0f ? static_cast<float>(score.pit) : -1.0f;
-    s.impossible[i] = score.impossible ? 1 : 0;
-    s.mean_m[i] = static_cast<float>(score.mean_m);
-    s.sd_m[i] = static_cast<float>(score.sd_m);
-    const NllMoments moments = expected_nll(model);
-    s.nll_expected[i] = static_cast<float>(moments.mean);
-    s.nll_variance[i] = static_cast<float>(moments.variance);
-  }
+  for_each_pixel_chunk(n, pool, [&](size_t first, size_t last) {
+    for (size_t i = first; i < last; ++i) {
+      const RangeModel model = model_of(t, i);
+      // The PIT draw is keyed by the pixel, so reports repeat exactly (DESIGN.md: counter-based noise).
+      RandomStream draw(seed, PixelKey{t.frame[i], t.column[i], t.beam[i]}, 0x5049545Fu);
+      const PixelScore score = score_pixel(model, f64(t.range_m[i]), draw.uniform(0));
+      s.nll[i] = static_cast<float>(score.nll);
+      s.z[i] = static_cast<float>(score.z);
+      s.pit[i] = t.range_m[i] > 0.0f ? static_cast<float>(score.pit) : -1.0f;
+      s.impossible[i] = score.impossible ? 1 : 0;
+      s.mean_m[i] = static_cast<float>(score.mean_m);
+      s.sd_m[i] = static_cast<float>(score.sd_m);
+      const NllMoments moments = expected_nll(model);
+      s.nll_expected[i] = static_cast<float>(moments.mean);
+      s.nll_variance[i] = static_cast<float>(moments.variance);
+    }
+  });
   return s;
 }
 

@@ -18,6 +18,7 @@
 #include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/column_caster.h"
 #include "lidartwin/error.h"
+#include "lidartwin/frame/wire_context.h"
 #include "lidartwin/packet/lidar_packet.h"
 
 namespace lidartwin {
@@ -107,8 +108,7 @@ void find_partners(PixelTable& t, const std::vector<ObservedColumn>& observed, s
     const auto i = static_cast<size_t>(row);
     out.range_m = t.ideal_range_m[i];
     out.reflectivity = t.material_reflectivity[i];
-    out.cos_incidence =
-        static_cast<float>(std::cos(static_cast<double>(t.incidence_deg[i]) * std::numbers::pi / 180.0));
+    out.cos_incidence = t.cos_incidence[i];
     return out;
   };
   size_t first = 0;
@@ -184,6 +184,7 @@ void PixelTable::resize(size_t n) {
                   &range2_m,
                   &ideal_range_m,
                   &incidence_deg,
+                  &cos_incidence,
                   &material_reflectivity,
                   &specular,
                   &azimuth_deg,
@@ -225,10 +226,10 @@ void PixelTable::set_measured(size_t i, uint32_t f, const Scan& scan, int m, int
 
 void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
   ideal_range_m[i] = ideal.range_m;
-  incidence_deg[i] =
-      ideal.hit() ? static_cast<float>(std::acos(std::clamp(static_cast<double>(ideal.cos_incidence), 0.0, 1.0)) *
-                                       180.0 / std::numbers::pi)
-                  : 0.0f;
+  set_incidence(i, ideal.hit()
+                       ? static_cast<float>(std::acos(std::clamp(static_cast<double>(ideal.cos_incidence), 0.0, 1.0)) *
+                                            180.0 / std::numbers::pi)
+                       : 0.0f);
   material_reflectivity[i] = ideal.reflectivity;
   specular[i] = ideal.specular;
   material[i] = static_cast<uint16_t>(ideal.hit() ? ideal.material_id : 0xFFFF);
@@ -260,10 +261,17 @@ void PixelTable::set_prediction(size_t i, const Prediction& prediction, const Ra
   step_m[i] = static_cast<float>(model.step_m);
 }
 
+void PixelTable::set_incidence(size_t i, float degrees) {
+  incidence_deg[i] = degrees;
+  // The cosine of the angle as stored (not the caster's own): effects see the same value whether
+  // the table was just cast or read back.
+  cos_incidence[i] = static_cast<float>(std::cos(static_cast<double>(degrees) * std::numbers::pi / 180.0));
+}
+
 IdealReturn PixelTable::ideal_of(size_t i) const {
   IdealReturn ideal;
   ideal.range_m = ideal_range_m[i];
-  ideal.cos_incidence = static_cast<float>(std::cos(static_cast<double>(incidence_deg[i]) * std::numbers::pi / 180.0));
+  ideal.cos_incidence = cos_incidence[i];
   ideal.reflectivity = material_reflectivity[i];
   ideal.specular = specular[i];
   ideal.material_id = material[i] == 0xFFFF ? 0 : material[i];
@@ -308,35 +316,35 @@ void PixelTable::predict(size_t i, const EffectChain& chain) {
   set_prediction(i, p, model_for(i, p));
 }
 
-PixelTable repredicted(const PixelTable& t, const EffectChain& chain) {
+PixelTable repredicted(const PixelTable& t, const EffectChain& chain, WorkerPool* pool) {
   PixelTable out = t;
-  for (size_t i = 0; i < t.size(); ++i) out.predict(i, chain);
+  for_each_pixel_chunk(t.size(), pool, [&](size_t first, size_t last) {
+    for (size_t i = first; i < last; ++i) out.predict(i, chain);
+  });
   return out;
 }
 
-PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
-  const Metadata& metadata = setup.capture.metadata;
-  const LidarDataFormat& format = metadata.format;
-  const PacketFormat packets(format);
-  const int width = format.columns_per_frame;
-  const int height = format.pixels_per_column;
-  const BeamGeometry geometry(metadata.beams, width);
-  const double wire_max_m = packets.channel_max(ChannelField::kRange) / 1000.0;
-  const auto reach = static_cast<float>(std::min(setup.max_range_m + 1.0, wire_max_m));
-  const ColumnCaster caster(setup.scene, geometry, reach);
+void for_each_pixel_chunk(size_t n, WorkerPool* pool, const std::function<void(size_t first, size_t last)>& chunk) {
+  const size_t chunks = (n + kPixelChunk - 1) / kPixelChunk;
+  const auto run = [&](size_t c) { chunk(c * kPixelChunk, std::min(n, (c + 1) * kPixelChunk)); };
+  if (pool && pool->size() > 1 && chunks > 1) {
+    pool->run(static_cast<int>(chunks), [&](int, int c) { run(static_cast<size_t>(c)); });
+  } else {
+    for (size_t c = 0; c < chunks; ++c) run(c);
+  }
+}
 
-  ColumnContext context;
-  context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
-  context.max_wire_range_m = static_cast<float>(wire_max_m);
-  context.signal_gain = analysis_detail::signal_gain_of(metadata);
-  context.columns_per_frame = static_cast<uint32_t>(width);
+namespace {
 
-  // Which columns were observed, and where their pixels go; pose times checked before any cast.
-  std::vector<ObservedColumn> observed;
+// The columns the table holds: valid ones (their packet arrived, their status says so), in capture
+// order, each with where its pixels go. Every column's pose time is checked before any cast.
+std::vector<ObservedColumn> observed_columns(const PixelTableSetup& setup) {
+  const LidarDataFormat& format = setup.capture.metadata.format;
   const PoseSpan span = setup.poses.span();
+  std::vector<ObservedColumn> observed;
   for (size_t f = 0; f < setup.capture.frames.size(); ++f) {
     const Scan& scan = setup.capture.frames[f].scan;
-    for (int m = 0; m < width; ++m) {
+    for (int m = 0; m < format.columns_per_frame; ++m) {
       if (!analysis_detail::column_valid(scan, m, format)) continue;
       const double t = static_cast<double>(scan.timestamp_ns[static_cast<size_t>(m)]) * 1e-9 + setup.time_offset_s;
       if (!span.contains(t)) {
@@ -347,24 +355,56 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
             setup.time_offset_s != 0.0 ? fmt::format(", {:+.6f} s offset", setup.time_offset_s) : "", span.begin_s,
             span.end_s));
       }
-      observed.push_back({static_cast<uint32_t>(f), m, observed.size() * static_cast<size_t>(height)});
+      observed.push_back(
+          {static_cast<uint32_t>(f), m, observed.size() * static_cast<size_t>(format.pixels_per_column)});
     }
   }
-  // Effects that drift (E12) count time from the capture's first observed column: a capture does
-  // not say when the sensor was powered on.
-  uint64_t first_stamp = setup.capture.start_ns;  // skipped frames included: held-out frames keep their time
-  for (const ObservedColumn& oc : observed) {
-    const uint64_t stamp = setup.capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)];
-    if (first_stamp == 0 || stamp < first_stamp) first_stamp = stamp;
-  }
-  PixelTable table;
-  table.resize(observed.size() * static_cast<size_t>(height));
-  table.context = context;
-  table.start_s = observed.empty() ? 0.0 : static_cast<double>(first_stamp) * 1e-9;
+  return observed;
+}
 
-  std::atomic<bool> no_spread{false};
-  // An item's columns are cast together (ColumnCaster: a frame's 16 aligned neighbours one row per
-  // packet), then predicted column by column.
+// Effects that drift (E12) count time from the capture's first observed column: a capture does not
+// say when the sensor was powered on. Skipped frames count: held-out frames keep their time.
+uint64_t first_column_stamp(const MeasuredCapture& capture, const std::vector<ObservedColumn>& observed) {
+  uint64_t first = capture.start_ns;
+  for (const ObservedColumn& oc : observed) {
+    const uint64_t stamp = capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)];
+    if (first == 0 || stamp < first) first = stamp;
+  }
+  return first;
+}
+
+// Calls progress(fraction) as items finish, at most once per percent, one call at a time.
+class ItemProgress {
+ public:
+  ItemProgress(const std::function<void(double)>& progress, int items) : progress_(progress), items_(items) {}
+  void item_done() {
+    if (!progress_) return;
+    const int percent = static_cast<int>(100LL * ++done_ / std::max(items_, 1));
+    int shown = shown_.load();
+    while (percent > shown && !shown_.compare_exchange_weak(shown, percent)) {
+    }
+    if (percent > shown) {
+      const std::lock_guard lock(mutex_);
+      progress_(percent / 100.0);
+    }
+  }
+
+ private:
+  const std::function<void(double)>& progress_;
+  const int items_;
+  std::atomic<int> done_{0};
+  std::atomic<int> shown_{0};
+  std::mutex mutex_;
+};
+
+// Each observed column's beams cast from the column's pose at its own timestamp, and each pixel's
+// measurement, ideal return and prediction written to the table. An item's columns are cast
+// together (ColumnCaster: a frame's 16 aligned neighbours one row per packet), then predicted
+// column by column. Returns whether the chain predicted no spread for a pixel it detects.
+bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedColumn>& observed,
+                      const ColumnCaster& caster, float reach, uint64_t first_stamp, PixelTable& table,
+                      WorkerPool& pool) {
+  const int height = setup.capture.metadata.format.pixels_per_column;
   constexpr int kColumnsPerItem = static_cast<int>(ColumnCaster::kGroupColumns);
   struct Scratch {
     std::vector<std::vector<IdealReturn>> ideal;  // [column of the item][row]
@@ -377,20 +417,8 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
                                        std::vector<Pose>(kColumnsPerItem),
                                        {}});
   const int items = static_cast<int>((observed.size() + kColumnsPerItem - 1) / kColumnsPerItem);
-  std::atomic<int> items_done{0};
-  std::atomic<int> percent_shown{0};
-  std::mutex progress_mutex;
-  const auto report_progress = [&] {
-    if (!setup.progress) return;
-    const int percent = static_cast<int>(100LL * ++items_done / std::max(items, 1));
-    int shown = percent_shown.load();
-    while (percent > shown && !percent_shown.compare_exchange_weak(shown, percent)) {
-    }
-    if (percent > shown) {
-      const std::lock_guard lock(progress_mutex);
-      setup.progress(percent / 100.0);
-    }
-  };
+  std::atomic<bool> no_spread{false};
+  ItemProgress progress(setup.progress, items);
   pool.run(items, [&](int worker, int item) {
     Scratch& s = scratch[static_cast<size_t>(worker)];
     const size_t begin = static_cast<size_t>(item) * kColumnsPerItem;
@@ -409,7 +437,7 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
       const int m = oc.column;
       const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
       const std::vector<IdealReturn>& ideal = s.ideal[i - begin];
-      ColumnContext column_context = context;
+      ColumnContext column_context = table.context;
       column_context.frame = oc.frame;
       column_context.column = static_cast<uint32_t>(m);
       column_context.time_s = static_cast<double>(stamp - first_stamp) * 1e-9;
@@ -417,24 +445,49 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
         const size_t p = oc.first_pixel + static_cast<size_t>(r);
         const IdealReturn& hit = ideal[static_cast<size_t>(r)];
         const Prediction prediction = setup.chain.predict(hit, column_context);
-        const RangeModel model = range_model(prediction, hit.range_m, context.range_step_m, reach);
+        const RangeModel model = range_model(prediction, hit.range_m, table.context.range_step_m, reach);
         if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
         table.set_measured(p, oc.frame, scan, m, r);
         table.set_ideal(p, hit);
         table.set_prediction(p, prediction, model);
       }
     }
-    report_progress();
+    progress.item_done();
   });
-  find_partners(table, observed, setup.capture.frames.size(), width, height, geometry);
-  mark_neighbourhoods(table, observed, setup.capture.frames.size(), width, height);
-  if (setup.chain.needs_edge_partners()) table = repredicted(table, setup.chain);  // now with partners
+  return no_spread;
+}
+
+}  // namespace
+
+// The phases: which columns, cast and predict each pixel, the neighbourhood features (edge
+// partners, distances to edges and retroreflectors), and the prediction again where the chain reads
+// the partners.
+PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
+  const Metadata& metadata = setup.capture.metadata;
+  const LidarDataFormat& format = metadata.format;
+  const PacketFormat packets(format);
+  const int width = format.columns_per_frame;
+  const int height = format.pixels_per_column;
+  const BeamGeometry geometry(metadata.beams, width);
+  const float reach = cast_reach_m(setup.max_range_m, packets);  // as the renderer casts
+  const ColumnCaster caster(setup.scene, geometry, reach);
+
+  const std::vector<ObservedColumn> observed = observed_columns(setup);
+  PixelTable table;
+  table.resize(observed.size() * static_cast<size_t>(height));
+  table.context = wire_context(packets, analysis_detail::signal_gain_of(metadata));
+  const uint64_t first_stamp = first_column_stamp(setup.capture, observed);
+  table.start_s = observed.empty() ? 0.0 : static_cast<double>(first_stamp) * 1e-9;
+  const bool no_spread = cast_and_predict(setup, observed, caster, reach, first_stamp, table, pool);
   if (no_spread) {
     throw InputError(
         "--profile: its effect chain predicts no range spread (variance 0) for pixels it detects, so no measured "
         "range can be scored against it; compare needs a profile with a range noise effect (e.g. "
         "range_noise_linear or range_noise_piecewise)");
   }
+  find_partners(table, observed, setup.capture.frames.size(), width, height, geometry);
+  mark_neighbourhoods(table, observed, setup.capture.frames.size(), width, height);
+  if (setup.chain.needs_edge_partners()) table = repredicted(table, setup.chain, &pool);  // now with partners
   return table;
 }
 

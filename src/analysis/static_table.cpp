@@ -8,8 +8,10 @@
 
 #include <fmt/format.h>
 
+#include "analysis/capture_points.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
 #include "lidartwin/error.h"
+#include "lidartwin/frame/wire_context.h"
 #include "lidartwin/packet/lidar_packet.h"
 
 namespace lidartwin {
@@ -24,20 +26,10 @@ struct Series {
   double sum = 0.0, sum2 = 0.0, reflectivity = 0.0;
 };
 
-}  // namespace
-
-PixelTable build_static_table(const StaticTableSetup& setup) {
-  const MeasuredCapture& capture = setup.capture;
-  const LidarDataFormat& format = capture.metadata.format;
-  const int width = format.columns_per_frame;
-  const int height = format.pixels_per_column;
-  const size_t frames = capture.frames.size();
-  if (frames < kMinFrames) {
-    throw InputError(fmt::format("--static: the capture has {} frame{}; a pixel's temporal spread needs at least {}",
-                                 frames, frames == 1 ? "" : "s", kMinFrames));
-  }
-  const PacketFormat packets(format);
-  const bool has_reflectivity = packets.has_channel(ChannelField::kReflectivity);
+// Each pixel's returns over the frames: count, sum, sum of squares and reflectivity.
+std::vector<Series> temporal_series(const MeasuredCapture& capture, bool has_reflectivity) {
+  const int width = capture.metadata.format.columns_per_frame;
+  const int height = capture.metadata.format.pixels_per_column;
   std::vector<Series> series(static_cast<size_t>(width * height));
   for (const BatchedFrame& frame : capture.frames) {
     const Scan& scan = frame.scan;
@@ -54,32 +46,62 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
       }
     }
   }
-  const auto min_returns = static_cast<size_t>(std::ceil(setup.min_return_fraction * static_cast<double>(frames)));
-  ColumnContext context;
-  context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
-  context.max_wire_range_m = static_cast<float>(packets.channel_max(ChannelField::kRange) / 1000.0);
-  context.columns_per_frame = static_cast<uint32_t>(width);
-  const double reach = std::min(setup.max_range_m + 1.0, static_cast<double>(context.max_wire_range_m));
+  return series;
+}
 
-  // The ideal return each kept pixel stands for. Pixels within 4 sigma of a range limit are left
-  // out: the limit cuts their returns, so the temporal mean of what came back is biased, and so
-  // would be everything predicted from it.
-  const auto ideal_of = [&](const Series& s) {
-    const auto n = static_cast<double>(s.returns);
-    IdealReturn ideal;
-    ideal.range_m = static_cast<float>(s.sum / n);
-    ideal.cos_incidence = 1.0f;  // unknown without a scene
-    // REFLECTIVITY's calibrated byte is percent for Lambertian targets (lidar-physics.md 2.1).
-    ideal.reflectivity =
-        has_reflectivity ? static_cast<float>(std::clamp(s.reflectivity / n / 100.0, 0.01, 1.0)) : 0.5f;
-    return ideal;
-  };
+// The ideal return a pixel's series stands for: its temporal mean, at the reflectivity it reported.
+IdealReturn ideal_of(const Series& s, bool has_reflectivity, int beam) {
+  const auto n = static_cast<double>(s.returns);
+  IdealReturn ideal;
+  ideal.range_m = static_cast<float>(s.sum / n);
+  ideal.cos_incidence = 1.0f;  // unknown without a scene
+  // REFLECTIVITY's calibrated byte is percent for Lambertian targets (lidar-physics.md 2.1).
+  ideal.reflectivity = has_reflectivity ? static_cast<float>(std::clamp(s.reflectivity / n / 100.0, 0.01, 1.0)) : 0.5f;
+  ideal.beam = static_cast<uint16_t>(beam);
+  return ideal;
+}
+
+// Drift (E12) counts from the capture's first column, as in the scene table.
+uint64_t first_column_stamp(const MeasuredCapture& capture) {
+  uint64_t first = capture.start_ns != 0 ? capture.start_ns : std::numeric_limits<uint64_t>::max();
+  for (const BatchedFrame& frame : capture.frames) {
+    for (const uint64_t stamp : frame.scan.timestamp_ns) {
+      if (stamp > 0) first = std::min(first, stamp);
+    }
+  }
+  return first;
+}
+
+}  // namespace
+
+// The phases: each pixel's temporal series, the pixels kept (enough returns, away from the range
+// limits), then one row per kept pixel and frame, predicted at its temporal mean.
+PixelTable build_static_table(const StaticTableSetup& setup) {
+  const MeasuredCapture& capture = setup.capture;
+  const LidarDataFormat& format = capture.metadata.format;
+  const int width = format.columns_per_frame;
+  const int height = format.pixels_per_column;
+  const size_t frames = capture.frames.size();
+  if (frames < kMinFrames) {
+    throw InputError(fmt::format("--static: the capture has {} frame{}; a pixel's temporal spread needs at least {}",
+                                 frames, frames == 1 ? "" : "s", kMinFrames));
+  }
+  const PacketFormat packets(format);
+  const bool has_reflectivity = packets.has_channel(ChannelField::kReflectivity);
+  const std::vector<Series> series = temporal_series(capture, has_reflectivity);
+  const auto min_returns = static_cast<size_t>(std::ceil(setup.min_return_fraction * static_cast<double>(frames)));
+  // The unit's signal_multiplier scales the SIGNAL it reports, which signal-driven effects (E2, E5)
+  // read.
+  const ColumnContext context = wire_context(packets, analysis_detail::signal_gain_of(capture.metadata));
+  const double reach = cast_reach_m(setup.max_range_m, packets);
+
+  // Pixels within 4 sigma of a range limit are left out: the limit cuts their returns, so the
+  // temporal mean of what came back is biased, and so would be everything predicted from it.
   std::vector<uint8_t> keep(series.size(), 0);
   size_t kept = 0, near_limits = 0;
   for (size_t i = 0; i < series.size(); ++i) {
     if (series[i].returns < std::max<size_t>(min_returns, 2)) continue;
-    IdealReturn ideal = ideal_of(series[i]);
-    ideal.beam = static_cast<uint16_t>(i % static_cast<size_t>(height));
+    const IdealReturn ideal = ideal_of(series[i], has_reflectivity, static_cast<int>(i % static_cast<size_t>(height)));
     ColumnContext pixel_context = context;  // the column's encoder angle matters to a window sector (E16)
     pixel_context.column = static_cast<uint32_t>(i / static_cast<size_t>(height));
     const RangeModel model =
@@ -104,18 +126,12 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
                     "range limits ({} pixels lie within 4 sigma of them)",
                     min_returns, frames, near_limits));
   }
-  // Drift (E12) counts from the capture's first column, as in the scene table.
-  uint64_t first_stamp = capture.start_ns != 0 ? capture.start_ns : std::numeric_limits<uint64_t>::max();
-  for (const BatchedFrame& frame : capture.frames) {
-    for (const uint64_t stamp : frame.scan.timestamp_ns) {
-      if (stamp > 0) first_stamp = std::min(first_stamp, stamp);
-    }
-  }
+
   PixelTable t;
   t.reference = PixelTable::Reference::kTemporalMean;
   t.resize(kept * frames);
   t.context = context;
-  t.start_s = static_cast<double>(first_stamp) * 1e-9;
+  t.start_s = static_cast<double>(first_column_stamp(capture)) * 1e-9;
   size_t p = 0;
   for (size_t f = 0; f < frames; ++f) {
     const Scan& scan = capture.frames[f].scan;
@@ -125,10 +141,8 @@ PixelTable build_static_table(const StaticTableSetup& setup) {
         if (!keep[index]) continue;
         const Series& s = series[index];
         const auto n = static_cast<double>(s.returns);
-        IdealReturn ideal = ideal_of(s);
-        ideal.beam = static_cast<uint16_t>(r);
         t.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
-        t.set_ideal(p, ideal);
+        t.set_ideal(p, ideal_of(s, has_reflectivity, r));
         t.material[p] = 0xFFFF;  // no scene: no material; incidence, edges and retros unknown (not binned)
         t.edge[p] = t.retro[p] = PixelTable::kFarPixels;
         // Residuals about a mean estimated from the same n returns spread by sqrt(1 - 1/n) less.

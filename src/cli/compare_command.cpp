@@ -71,13 +71,14 @@ void score_profiles(const CompareFlags& flags, const Measured& measured, const P
   MisfitOptions options;
   options.alpha = flags.alpha;
   scored.table = &measured.table;
+  WorkerPool pool(flags.measured.threads);
   for (size_t k = 0; k < p.profiles.size(); ++k) {
     steps.start(p.profiles.size() > 1 ? "scoring and binning, profile by profile" : "scoring and binning");
     if (k > 0) {
-      scored.other = repredicted(measured.table, p.chains[k]);
+      scored.other = repredicted(measured.table, p.chains[k], &pool);
       scored.table = &scored.other;
     }
-    scored.scores = score_pixels(*scored.table, flags.seed);
+    scored.scores = score_pixels(*scored.table, flags.seed, &pool);
     result.misfit = find_misfit(*scored.table, scored.scores, measured.capture.frames.size(), options);
     result.waterfall.push_back(
         waterfall_step(p.profiles[k].name, *scored.table, result.misfit, measured.inputs.material_names));

@@ -133,8 +133,8 @@ std::vector<std::pair<std::string, std::string>> replacements(const std::vector<
 Fitted fit_automatically(const Measured& measured, const EffectChain& chain, const DiagnoseOptions& options) {
   MisfitOptions misfit_options;
   misfit_options.alpha = options.alpha;
-  const Misfit misfit =
-      find_misfit(measured.table, score_pixels(measured.table), measured.capture.frames.size(), misfit_options);
+  const Misfit misfit = find_misfit(measured.table, score_pixels(measured.table, 0, options.pool),
+                                    measured.capture.frames.size(), misfit_options);
   const Diagnosis diagnosis = diagnose(measured.table, chain, misfit, options);
   Fitted out{diagnosis.fitted, {}, diagnosis.replace, diagnosis.selected};
   for (const ParameterMisfit& m : diagnosis.parameter_misfit) out.refits.push_back(m.refit);

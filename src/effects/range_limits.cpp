@@ -76,12 +76,15 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
     const double upper = static_cast<double>(std::min(static_cast<float>(params().max_m), context.max_wire_range_m));
     const auto inside = [&](double mean, double variance) {
       if (variance <= 0.0) return (mean >= lower && mean <= upper) ? 1.0 : 0.0;
+      // Far inside the window (8.5 sigmas from each end) the difference below is exactly 1 (Phi(-8.5)
+      // is below half an ulp of 1); the analysis predicts millions of pixels, and erfc, a square
+      // root and divisions are its costliest steps: the test is made on squares.
+      const double below = mean - lower, above = upper - mean;
+      if (below > 0.0 && above > 0.0 && below * below > 72.25 * variance && above * above > 72.25 * variance) {
+        return 1.0;
+      }
       const double s = std::sqrt(variance);
-      const double a = (lower - mean) / s, b = (upper - mean) / s;
-      // Far inside the window the difference below is exactly 1 (Phi(-8.5) is below half an ulp of
-      // 1); the analysis predicts millions of pixels, and erfc is its costliest step.
-      if (a < -8.5 && b > 8.5) return 1.0;
-      return normal_cdf(b) - normal_cdf(a);
+      return normal_cdf((upper - mean) / s) - normal_cdf((lower - mean) / s);
     };
     const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
     const double partner = prediction.partner_mix;  // E6, E8: a return from the edge partner's surface, a halo's

@@ -8,6 +8,7 @@
 
 #include "frame/channel_encoder.h"
 #include "lidartwin/caster/column_caster.h"
+#include "lidartwin/frame/wire_context.h"
 #include "lidartwin/packet/lidar_packet.h"
 
 namespace lidartwin {
@@ -23,13 +24,6 @@ struct Scratch {
   std::vector<Pose> moved;                 // their poses moved by E11, when the chain moves them
 };
 
-// Rays end 1 m past the profile's maximum range, so range noise can still carry a return across
-// it and the effect chain's range_limits decide (E16), and never beyond what the wire can carry (E9).
-float cast_limit_m(double max_range_m, const PacketFormat& packets) {
-  const double wire_m = packets.channel_max(ChannelField::kRange) / 1000.0;
-  return static_cast<float>(std::min(max_range_m + 1.0, wire_m));
-}
-
 }  // namespace
 
 struct FrameRenderer::Impl {
@@ -37,18 +31,15 @@ struct FrameRenderer::Impl {
       : setup(std::move(render_setup)),
         packets(setup.format),
         geometry(setup.beams, setup.format.columns_per_frame),
-        cast_range(cast_limit_m(setup.max_range_m, packets)),
+        cast_range(cast_reach_m(setup.max_range_m, packets)),
         caster(scene, geometry, cast_range),
         encoder(packets),
         partners(setup.chain.needs_edge_partners()),
         moves(setup.chain.moves_sensor()),
         pool(worker_pool) {
     assert(setup.beams.pixels_per_column() == setup.format.pixels_per_column);
+    context = wire_context(packets, setup.signal_gain);
     context.seed = setup.seed;
-    context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
-    context.max_wire_range_m = static_cast<float>(packets.channel_max(ChannelField::kRange)) / 1000.0f;
-    context.signal_gain = setup.signal_gain;
-    context.columns_per_frame = static_cast<uint32_t>(setup.format.columns_per_frame);
     const auto rows = static_cast<size_t>(setup.format.pixels_per_column);
     const auto block = static_cast<size_t>(setup.format.columns_per_packet);
     scratch.assign(static_cast<size_t>(pool.size()),

@@ -24,7 +24,7 @@ inline PixelTable synthetic_layout() {
     t.time_s[i] = t.frame[i] * 0.1 + column * 0.1 / 512;
     const double ideal = 1.0 + 59.0 * ((beam * 7 + column) % 512) / 512.0;
     t.ideal_range_m[i] = static_cast<float>(ideal);
-    t.incidence_deg[i] = static_cast<float>(beam % 80);
+    t.set_incidence(i, static_cast<float>(beam % 80));
     t.material_reflectivity[i] = 0.5f;
     t.azimuth_deg[i] = static_cast<float>(360.0 - 360.0 * column / 512);
     t.predicted_sigma_m[i] = 0.02f;

@@ -26,7 +26,7 @@ struct PixelScores {
   std::vector<float> nll_expected;  // mean and variance of the NLL if the model were true
   std::vector<float> nll_variance;
 };
-PixelScores score_pixels(const PixelTable& table, uint64_t seed = 0);
+PixelScores score_pixels(const PixelTable& table, uint64_t seed = 0, WorkerPool* pool = nullptr);
 
 // A region of feature space: feature name (compare vocabulary: range, incidence, reflectivity,
 // signal, near_ir, beam, azimuth, time, edge, material, retro) -> [lo, hi].

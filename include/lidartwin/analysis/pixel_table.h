@@ -32,8 +32,9 @@ struct PixelTable {
   std::vector<float> near_ir;
   std::vector<float> range2_m;
   // The ideal return and its features.
-  std::vector<float> ideal_range_m;  // 0: the beam hits nothing in the scene
-  std::vector<float> incidence_deg;
+  std::vector<float> ideal_range_m;          // 0: the beam hits nothing in the scene
+  std::vector<float> incidence_deg;          // written with set_incidence, which keeps cos_incidence with it
+  std::vector<float> cos_incidence;          // as ideal_of hands it to the effects: a fit reads it millions of times
   std::vector<float> material_reflectivity;  // diffuse, 0..1
   std::vector<float> specular;
   std::vector<uint16_t> material;
@@ -94,6 +95,7 @@ struct PixelTable {
   // scene table then turns into distances), and the chain's prediction for it.
   void set_ideal(size_t i, const IdealReturn& ideal);
   void set_prediction(size_t i, const Prediction& prediction, const RangeModel& model);
+  void set_incidence(size_t i, float degrees);
   // Pixel i's predicted distribution of the measured range under a chain's prediction for it,
   // with the reference's rules applied (see Reference). Every prediction the analysis scores goes
   // through here, the table's own and every refit's.
@@ -125,6 +127,13 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool);
 // The same table with every pixel's prediction redone by another chain; what was measured, the
 // ideal returns and the features are unchanged. (Not for static tables: their predictions are
 // adjusted for the temporal mean.)
-PixelTable repredicted(const PixelTable& table, const EffectChain& chain);
+// pool: the workers that predict (none: the calling thread); the table is the same either way.
+PixelTable repredicted(const PixelTable& table, const EffectChain& chain, WorkerPool* pool = nullptr);
+
+// Calls chunk(first, last) for consecutive runs of at most kPixelChunk of [0, n), on the pool's
+// workers where it has more than one. The runs are fixed by n alone, so work that writes its own
+// pixels, or sums per run and adds the runs in order, comes out the same whatever the pool.
+inline constexpr size_t kPixelChunk = 4096;
+void for_each_pixel_chunk(size_t n, WorkerPool* pool, const std::function<void(size_t first, size_t last)>& chunk);
 
 }  // namespace lidartwin

@@ -20,7 +20,7 @@ struct StaticTableSetup {
   double min_return_fraction = 0.5;
 };
 
-// Throws InputError when the capture has fewer than 5 frames, or no pixel returns often enough.
+// Throws InputError when the capture has fewer than 2 frames, or no pixel returns often enough.
 PixelTable build_static_table(const StaticTableSetup& setup);
 
 }  // namespace lidartwin
