@@ -39,6 +39,15 @@ struct Search {
   void say(const std::string& what) const {
     if (options.progress) options.progress(what);
   }
+  // The whole table predicted by the chain `by`, valid until the next call: the steps that rescore every
+  // pixel (a pattern, what is left unexplained, each candidate's repairs) share one copy of the
+  // capture's table, as large as the capture, instead of copying it for each chain.
+  const PixelTable& predicted_by(const EffectChain& by) const {
+    if (scratch.size() != table.size()) scratch = table;
+    repredict(table, by, scratch, rows.pool);
+    return scratch;
+  }
+  mutable PixelTable scratch;
 };
 
 // What a round kept: an added candidate, or a law of another form in place of the noise law
@@ -174,12 +183,11 @@ void note_shared(const Search& s, Diagnosis& d, const Kept& last, const std::vec
 // the candidate was only absorbing part of an effect it is not (a signal-driven dropout taking up
 // some of a few weak beams' losses, a common drift one material's bias): it is passed over. Where
 // each explains the other (a range walk and a bias per signal bin), the physical effect is kept.
-// (The repredicted tables live one at a time: each is as large as the capture's table.)
 std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candidate& best, const CandidateSpec& spec) {
   FeaturePattern pattern;
   PatternAdjustment adjust;
   {
-    const PixelTable now = repredicted(s.table, s.chain, s.rows.pool);
+    const PixelTable& now = s.predicted_by(s.chain);
     const PixelScores now_scores = score_pixels(now, 0, s.rows.pool);
     pattern = strongest_pattern(now, now_scores);
     if (!pattern.quantity.empty()) adjust = pattern_adjustment(now, now_scores, pattern);
@@ -190,7 +198,7 @@ std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candid
   const Candidate given = fit(s.table, s.rows, Placement{s.chain, {}}, with_pattern, spec, &adjust);
   if (given.delta_bic >= s.options.min_delta_bic) return std::nullopt;
   const EffectChain with = with_candidate(s.chain, best.effect_json);
-  const PixelTable then = repredicted(s.table, with, s.rows.pool);
+  const PixelTable& then = s.predicted_by(with);
   const PatternAdjustment after = pattern_adjustment(then, score_pixels(then, 0, s.rows.pool), pattern);
   const double pattern_given =  // the pattern's delta BIC given the candidate
       2.0 * (s.nll - best.delta_nll - analysis_detail::total_nll(s.table, s.rows, with, &after)) -
@@ -292,7 +300,7 @@ void refit_steps_jointly(Search& s, Diagnosis& d, const std::vector<Step>& steps
 void explain_remaining(const Search& s, Diagnosis& d) {
   MisfitOptions misfit_options;
   misfit_options.alpha = s.options.alpha;
-  const PixelTable final_table = repredicted(s.table, s.chain, s.rows.pool);
+  const PixelTable& final_table = s.predicted_by(s.chain);
   const PixelScores final_scores = score_pixels(final_table, 0, s.rows.pool);
   const Misfit remaining = find_misfit(final_table, final_scores, s.misfit.summary.frames, misfit_options);
   d.unexplained = explain_misfit(final_table, final_scores, remaining, s.options.alpha);
@@ -315,7 +323,7 @@ void explain_remaining(const Search& s, Diagnosis& d) {
 // The failing regions of the profile's chain that no longer fail with `chain` (the whole table
 // rescored).
 std::vector<std::string> repairs(const Search& s, const EffectChain& chain) {
-  const PixelTable with = repredicted(s.table, chain, s.rows.pool);
+  const PixelTable& with = s.predicted_by(chain);
   MisfitOptions misfit_options;
   misfit_options.alpha = s.options.alpha;
   const Misfit after = find_misfit(with, score_pixels(with, 0, s.rows.pool), s.misfit.summary.frames, misfit_options);
@@ -371,7 +379,8 @@ std::string replacement_sentence(const Replacement& r) {
 Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
                    const DiagnoseOptions& options) {
   Diagnosis d;
-  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0, 0};
+  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool),
+           chain, 0.0,    0,       {}};
   d.pixels = s.rows.size();
   refit_radiometry_first(s, d);
   s.nll = analysis_detail::total_nll(table, s.rows, s.chain);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cassert>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -318,10 +319,21 @@ void PixelTable::predict(size_t i, const EffectChain& chain) {
 
 PixelTable repredicted(const PixelTable& t, const EffectChain& chain, WorkerPool* pool) {
   PixelTable out = t;
-  for_each_pixel_chunk(t.size(), pool, [&](size_t first, size_t last) {
-    for (size_t i = first; i < last; ++i) out.predict(i, chain);
-  });
+  repredict(t, chain, out, pool);
   return out;
+}
+
+void repredict(const PixelTable& t, const EffectChain& chain, PixelTable& out, WorkerPool* pool) {
+  assert(out.size() == t.size());
+  for_each_pixel_chunk(t.size(), pool, [&](size_t first, size_t last) {
+    for (size_t i = first; i < last; ++i) {
+      // The prediction's inputs among the prediction's columns (model_for: the bins' width and the
+      // cast's reach), as the source table has them, not as an earlier chain left them.
+      out.step_m[i] = t.step_m[i];
+      out.window_max_m[i] = t.window_max_m[i];
+      out.predict(i, chain);
+    }
+  });
 }
 
 void for_each_pixel_chunk(size_t n, WorkerPool* pool, const std::function<void(size_t first, size_t last)>& chunk) {

@@ -129,6 +129,9 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool);
 // adjusted for the temporal mean.)
 // pool: the workers that predict (none: the calling thread); the table is the same either way.
 PixelTable repredicted(const PixelTable& table, const EffectChain& chain, WorkerPool* pool = nullptr);
+// The same into `out`, a copy of `table` (repredicted before or not): only the predictions are
+// written, so one table serves a sequence of chains without a copy of the capture each.
+void repredict(const PixelTable& table, const EffectChain& chain, PixelTable& out, WorkerPool* pool = nullptr);
 
 // Calls chunk(first, last) for consecutive runs of at most kPixelChunk of [0, n), on the pool's
 // workers where it has more than one. The runs are fixed by n alone, so work that writes its own
