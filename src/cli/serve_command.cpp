@@ -17,6 +17,7 @@
 
 #include "cli/command.h"
 #include "cli/format_validators.h"
+#include "cli/rig_file.h"
 #include "cli/serve_inputs.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/effects/effect_chain.h"
@@ -47,20 +48,21 @@ int report_bind_error(const BindError& error) {
   return 2;
 }
 
-// Runs until SIGINT/SIGTERM: the signal stops the sensor's streamer, which leaves the io_context
-// without work, so run() returns; then the sensor's HTTP server and stats stop. `signals` was made
-// before the sensor started answering, so a signal sent as soon as it answers is not lost.
-int run_daemon(asio::io_context& io, asio::signal_set& signals, VirtualSensor& sensor, PoseReceiver* receiver) {
-  signals.async_wait([&sensor, receiver](const asio::error_code& error, int signal_number) {
+// Runs until SIGINT/SIGTERM: the signal stops the sensors' streamers, which leaves the io_context
+// without work, so run() returns; then the sensors' HTTP servers and stats stop. `signals` was made
+// before the sensors started answering, so a signal sent as soon as they answer is not lost.
+int run_daemon(asio::io_context& io, asio::signal_set& signals, std::vector<std::unique_ptr<VirtualSensor>>& sensors,
+               PoseReceiver* receiver) {
+  signals.async_wait([&sensors, receiver](const asio::error_code& error, int signal_number) {
     if (error) return;
     spdlog::info("serve: {} received, stopping", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
-    sensor.stop_streaming();
+    for (auto& sensor : sensors) sensor->stop_streaming();
     if (receiver) receiver->stop();
   });
   // The send clock's wake-ups should not be rounded up by the default 50 us timer slack.
   prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   io.run();
-  sensor.stop();
+  for (auto& sensor : sensors) sensor->stop();
   spdlog::info("serve: stopped");
   return 0;
 }
@@ -149,62 +151,106 @@ int64_t steady_now_ns() {
       .count();
 }
 
+// A unit's firmware older than 2.4: clients refuse it, as they would refuse the unit.
+void warn_old_firmware(const SensorChoice& choice) {
+  if (!choice.unit) return;
+  spdlog::info("serve: {}", choice.profile.source);
+  const std::string& image_rev = choice.unit->sensor_info.image_rev;
+  const auto version = firmware_version(image_rev);
+  if (version && *version < std::pair{2, 4}) {
+    spdlog::warn(
+        "serve: the unit's firmware ({}) is older than 2.4: SDK 0.16 and later refuse it (\"Please upgrade "
+        "your sensor to FW 2.4 or later\"), as they would refuse the unit",
+        image_rev);
+  }
+}
+
+// One sensor of the daemon before it starts: the command line's, or an entry of a rig file.
+struct PlannedSensor {
+  RigSensor entry;
+  SensorChoice choice;
+  VirtualSensorSetup setup;
+  // What a message about this sensor's flags starts with: "--rig rig.json: sensor \"left\": ".
+  std::string context;
+};
+
+std::vector<PlannedSensor> plan_sensors(const ServeFlags& flags, int render_nice) {
+  std::vector<RigSensor> entries;
+  if (flags.rig.empty()) {
+    entries.push_back({"", flags});
+  } else {
+    entries = load_rig(flags.rig, flags);
+  }
+  std::vector<PlannedSensor> planned;
+  for (RigSensor& entry : entries) {
+    const std::string context =
+        flags.rig.empty() ? std::string() : fmt::format("--rig {}: sensor \"{}\": ", flags.rig, entry.name);
+    try {
+      SensorChoice choice = load_sensor(entry.flags.profile);
+      VirtualSensorSetup setup = sensor_setup(entry.flags, choice, parse_address(entry.flags.address), render_nice);
+      planned.push_back({std::move(entry), std::move(choice), std::move(setup), context});
+    } catch (const InputError& e) {
+      throw InputError(context + e.what());
+    }
+  }
+  return planned;
+}
+
 int serve(const ServeFlags& flags) {
   setup_logging(flags.log_level);
-  const auto address = parse_address(flags.address);
-  const SensorChoice sensor_choice = load_sensor(flags.profile);
-  const SensorProfile& profile = sensor_choice.profile;
   const bool realtime = send_clock_can_be_realtime();
-  VirtualSensorSetup setup = sensor_setup(flags, sensor_choice, address, realtime ? 0 : 5);
+  std::vector<PlannedSensor> planned = plan_sensors(flags, realtime ? 0 : 5);
   const auto scene_file = scene_path(flags);
   const Scene scene = Scene::load(scene_file);
   // The rig's time zero: a trajectory starts here, live poses are placed on it as they arrive.
+  // Every sensor of a rig shares it, so their columns agree in time as on a vehicle with PTP.
   const int64_t epoch_steady_ns = steady_now_ns();
   const Motion motion = load_motion(flags, epoch_steady_ns);
-  spdlog::info("serve: {} ({}) in {} ({} triangles), {}", profile.prod_line, profile.name, scene_file.string(),
-               scene.triangle_count(), motion.description);
-  if (sensor_choice.unit) {
-    spdlog::info("serve: {}", profile.source);
-    const std::string& image_rev = sensor_choice.unit->sensor_info.image_rev;
-    const auto version = firmware_version(image_rev);
-    if (version && *version < std::pair{2, 4}) {
-      spdlog::warn(
-          "serve: the unit's firmware ({}) is older than 2.4: SDK 0.16 and later refuse it (\"Please upgrade "
-          "your sensor to FW 2.4 or later\"), as they would refuse the unit",
-          image_rev);
-    }
+  for (const PlannedSensor& p : planned) {
+    spdlog::info("serve: {}{} ({}) in {} ({} triangles), {}", p.entry.name.empty() ? "" : p.entry.name + ": ",
+                 p.choice.profile.prod_line, p.choice.profile.name, scene_file.string(), scene.triangle_count(),
+                 motion.description);
+    warn_old_firmware(p.choice);
   }
 
   asio::io_context io;
   // From here SIGINT/SIGTERM are caught (and held until run_daemon waits for them): a client or
   // supervisor that stops the daemon as soon as it answers gets a clean stop, not exit 143.
   asio::signal_set signals(io, SIGINT, SIGTERM);
-  WorkerPool pool(flags.threads, setup.streamer.render_nice);
+  // One pool for every sensor: its runs take turns, a packet's worth of columns at a time.
+  WorkerPool pool(flags.threads, realtime ? 0 : 5);
   const RigContext rig{io, scene, motion.poses(), pool, flags.lock_step ? 0 : epoch_steady_ns, motion.live.get()};
   std::unique_ptr<PoseReceiver> receiver;
   if (motion.live) receiver = std::make_unique<PoseReceiver>(io, *motion.live, pose_udp_endpoint(flags));
-  std::unique_ptr<VirtualSensor> sensor;
-  try {
-    sensor = std::make_unique<VirtualSensor>(rig, std::move(setup));
-  } catch (const InputError& e) {
-    // The streamer names --record itself; the sensor's config errors come from these flags.
-    const std::string message = e.what();
-    if (message.starts_with("--record")) throw;
-    throw InputError((sensor_choice.unit ? "--profile " + flags.profile + " (the unit's config)/" : std::string()) +
-                     "--lidar-mode/--udp-profile/--state-file: " + message);
+  std::vector<std::unique_ptr<VirtualSensor>> sensors;
+  for (PlannedSensor& p : planned) {
+    try {
+      sensors.push_back(std::make_unique<VirtualSensor>(rig, std::move(p.setup)));
+    } catch (const InputError& e) {
+      // The streamer names --record itself; the sensor's config errors come from these flags.
+      const std::string message = e.what();
+      if (message.starts_with("--record")) throw InputError(p.context + message);
+      throw InputError(
+          p.context + (p.choice.unit ? "--profile " + p.entry.flags.profile + " (the unit's config)/" : std::string()) +
+          "--lidar-mode/--udp-profile/--state-file: " + message);
+    }
   }
   try {
-    sensor->start();
+    for (auto& sensor : sensors) sensor->start();
   } catch (const BindError& e) {
     return report_bind_error(e);
   }
   if (receiver) receiver->start();
-  spdlog::info("serve: sensor {} sn {} answering on http://{}:{}/api/v1/", sensor->sensor().identity().prod_line,
-               sensor->sensor().identity().prod_sn, flags.address, sensor->http().port());
+  for (size_t i = 0; i < sensors.size(); ++i) {
+    const SensorIdentity& identity = sensors[i]->sensor().identity();
+    spdlog::info("serve: {}sensor {} sn {} answering on http://{}:{}/api/v1/",
+                 planned[i].entry.name.empty() ? "" : planned[i].entry.name + ": ", identity.prod_line,
+                 identity.prod_sn, planned[i].entry.flags.address, sensors[i]->http().port());
+  }
   raise_send_clock_priority();
   spdlog::info("serve: send clock runs {}",
                realtime ? "SCHED_FIFO" : "at normal priority (no CAP_SYS_NICE), casting niced");
-  return run_daemon(io, signals, *sensor, receiver.get());
+  return run_daemon(io, signals, sensors, receiver.get());
 }
 
 void setup_serve(CLI::App& app, std::function<int()>& run) {
@@ -275,6 +321,10 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--fault", flags->faults,
                   "inject faults, e.g. loss=0.01,loss_burst=3,reorder=0.01,reset_at=10,seed=7 (repeatable; "
                   "docs/fault-injection.md; GET/PUT /lidartwin/v1/faults at run time)");
+  auto* rig = sub->add_option("--rig", flags->rig,
+                              "a rig file (docs/rig.md): several sensors, each with its own address, profile and "
+                              "mounting, in this one process, sharing the scene, the motion and the time base");
+  for (const std::string& name : per_sensor_flags()) rig->excludes(name);
   sub->add_option("--log-level", flags->log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();

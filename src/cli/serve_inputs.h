@@ -49,6 +49,7 @@ struct ServeFlags {
   bool lock_step = false;           // the simulator owns time: pose times drive the sensor's clock
   bool stamp_pose_clock = false;    // stamped on the poses' clock, paced on the host's
   std::vector<std::string> faults;  // --fault SPEC, each a comma-separated list (docs/fault-injection.md)
+  std::string rig;                  // --rig FILE: the sensors of a rig (docs/rig.md)
 };
 
 // $LIDARTWIN_SOURCE_DIR, else the source tree this binary was built from.

@@ -46,8 +46,25 @@ class Daemon {
     spawn(argv);
     wait_until_ready(timeout);
   }
+  // Starts `lidartwin serve args...` for a rig (--rig FILE among args) and waits until the sensor at
+  // `address`, the rig's last, answers; port_of() gives each sensor's HTTP port.
+  struct Rig {};
+  Daemon(Rig, std::string address, const std::vector<std::string>& args,
+         std::chrono::seconds timeout = std::chrono::seconds(30))
+      : address_(std::move(address)), ready_prefix_("answering on http://" + address_) {
+    static int counter = 0;
+    log_path_ = scratch_dir() / ("rig-" + address_ + "-" + std::to_string(++counter) + ".log");
+    std::vector<std::string> argv{LIDARTWIN_BINARY, "serve"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    spawn(argv);
+    wait_until_ready(timeout);
+  }
   ~Daemon() {
     if (pid_ > 0) stop();
+  }
+  // The HTTP port of the sensor at `address` (a rig's), from the daemon's log; -1 if none answers there.
+  int port_of(const std::string& address) const {
+    return port_after(log(), "answering on http://" + address).value_or(-1);
   }
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
@@ -101,7 +118,7 @@ class Daemon {
   void wait_until_ready(std::chrono::seconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
-      if (const std::optional<int> port = port_after(log(), "answering on http://")) {
+      if (const std::optional<int> port = port_after(log(), ready_prefix_)) {
         http_port_ = *port;
         return;
       }
@@ -117,6 +134,7 @@ class Daemon {
   }
 
   std::string address_;
+  std::string ready_prefix_ = "answering on http://";
   std::filesystem::path log_path_;
   pid_t pid_ = -1;
   int http_port_ = 0;
