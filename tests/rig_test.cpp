@@ -51,7 +51,9 @@ TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
   const StaticPose poses(Pose{});
   asio::io_context io;
   WorkerPool pool(2);
-  const RigContext rig{io, scene, poses, pool, 0};
+  // One time base, as a rig's sensors share one (sensor/time_base.h).
+  const RigContext rig{io, scene,   poses,   pool,
+                       0,  nullptr, nullptr, std::make_shared<const TimeBase>(TimeBase::from_host())};
   std::vector<std::unique_ptr<VirtualSensor>> sensors;
   sensors.push_back(std::make_unique<VirtualSensor>(rig, setup_for("127.0.0.1", "122201000001")));
   sensors.push_back(std::make_unique<VirtualSensor>(rig, setup_for("127.0.0.2", "122201000002")));

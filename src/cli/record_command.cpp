@@ -15,6 +15,7 @@
 
 #include "cli/command.h"
 #include "cli/format_validators.h"
+#include "cli/sensor_physics.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
@@ -47,18 +48,6 @@ struct RecordFlags {
   bool ideal = false;
   double uptime_s = kDefaultUptimeS;
 };
-
-// --ideal: no noise or dropout. Radiometry (deterministic expected values) keeps signal,
-// reflectivity and NIR meaningful; the profile's range window and the wire's range step remain.
-EffectChain ideal_chain(const SensorProfile& profile) {
-  nlohmann::json chain = nlohmann::json::array();
-  for (const auto& effect : profile.effects) {
-    if (effect.value("name", "") == "radiometry") chain.push_back(effect);
-  }
-  chain.push_back({{"name", "range_limits"}, {"min_m", profile.min_range_m}, {"max_m", profile.max_range_m}});
-  chain.push_back({{"name", "range_quantization"}});
-  return EffectChain::from_json(chain, "--ideal chain for profile " + profile.name);
-}
 
 std::unique_ptr<PoseSource> load_poses(const RecordFlags& flags) {
   if (flags.trajectory.empty() == flags.pose.empty()) throw InputError("record: give one of --trajectory or --pose");
@@ -177,17 +166,16 @@ int run_record(const RecordFlags& flags) {
   const Metadata metadata = make_record_metadata(flags, sensor);
   const std::unique_ptr<PoseSource> poses = load_poses(flags);
   const Scene scene = Scene::load(flags.scene);
-  EffectChain chain = flags.ideal ? ideal_chain(profile) : profile_chain(profile);
+  SensorPhysics physics = sensor_physics(profile, flags.ideal);
   const ProgressBar bar(flags.frames, metadata.format.fps);
   struct sigaction action {};
   action.sa_handler = request_stop;
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
-  const int frames =
-      record({scene, *poses, profile.max_range_m, std::move(chain), metadata, flags.seed, flags.threads, flags.frames,
-              flags.out, flags.ideal ? ImuNoise{} : profile.imu, flags.uptime_s, &stop_requested},
-             [&bar](int done) { bar.update(done); });
+  const int frames = record({scene, *poses, profile.max_range_m, std::move(physics.chain), metadata, flags.seed,
+                             flags.threads, flags.frames, flags.out, physics.imu, flags.uptime_s, &stop_requested},
+                            [&bar](int done) { bar.update(done); });
   if (frames == flags.frames) {
     std::printf("recorded %d frames of %s (%s) to %s: capture.pcap, metadata.json, poses.tum%s\n", frames,
                 profile.name.c_str(), metadata.config_params.value("lidar_mode", "").c_str(), flags.out.c_str(),
@@ -233,8 +221,7 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
                   "the sensor's time since power-on at frame 0: where its timestamps start (TIME_FROM_INTERNAL_OSC)")
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
-  sub->add_flag("--ideal", flags->ideal,
-                "no noise or dropout: ideal ranges on the wire's step, within the profile's range, and an exact IMU");
+  add_ideal_flag(*sub, flags->ideal);
   sub->callback([&run, flags, mode, udp_profile, columns] {
     flags->mode_given = mode->count() > 0;
     flags->udp_profile_given = udp_profile->count() > 0;

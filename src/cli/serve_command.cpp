@@ -18,7 +18,9 @@
 #include "cli/command.h"
 #include "cli/format_validators.h"
 #include "cli/rig_file.h"
+#include "cli/sensor_physics.h"
 #include "cli/serve_inputs.h"
+#include "cli/serve_motion.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/error.h"
@@ -104,11 +106,12 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sen
   setup.streamer.spin_us = flags.spin_us;
   setup.streamer.render_nice = render_nice;
   setup.max_range_m = profile.max_range_m;
-  setup.chain = profile_chain(profile);
+  SensorPhysics physics = sensor_physics(profile, flags.ideal);
+  setup.chain = std::move(physics.chain);
   setup.seed = flags.seed;
   setup.mounting = mounting(flags);
   setup.per_column_poses = flags.per_column_poses;
-  setup.imu_noise = profile.imu;
+  setup.imu_noise = physics.imu;
   setup.stamp_pose_clock = flags.stamp_pose_clock;
   // Several --fault flags make one plan: a key given twice is an error, as within one flag.
   if (!flags.faults.empty()) setup.faults = fault_plan_from_spec(to_spec_joined(flags.faults), flags.seed);
@@ -118,32 +121,6 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sen
     setup.streamer.withhold_unposed = live_pose_options(flags).timeout == PoseTimeout::kStandby;
   }
   return setup;
-}
-
-// The motion: poses arriving live, or a trajectory (--pose, --trajectory, the default flight).
-struct Motion {
-  std::unique_ptr<LivePoses> live;
-  std::unique_ptr<TrajectoryPoses> trajectory;
-  std::string description;
-  const PoseSource& poses() const { return live ? static_cast<const PoseSource&>(*live) : *trajectory; }
-};
-
-Motion load_motion(const ServeFlags& flags, int64_t epoch_steady_ns) {
-  Motion motion;
-  if (live(flags)) {
-    if (!flags.pose.empty() || !flags.trajectory.empty()) {
-      throw InputError("--live-poses/--pose-udp: the poses arrive live; leave out --pose and --trajectory");
-    }
-    // In lock-step the simulation's clock stands in for the host's (a zero epoch: pose time is
-    // simulation time), and the streamer follows it.
-    motion.live = std::make_unique<LivePoses>(live_pose_options(flags), flags.lock_step ? 0 : epoch_steady_ns);
-    motion.description = flags.lock_step ? "live poses in lock-step with the simulation's clock" : "live poses";
-    return motion;
-  }
-  Trajectory trajectory = load_trajectory(flags);
-  motion.description = fmt::format("trajectory of {:.1f} s", trajectory.duration_s());
-  motion.trajectory = std::make_unique<TrajectoryPoses>(std::move(trajectory));
-  return motion;
 }
 
 int64_t steady_now_ns() {
@@ -219,7 +196,15 @@ int serve(const ServeFlags& flags) {
   asio::signal_set signals(io, SIGINT, SIGTERM);
   // One pool for every sensor: its runs take turns, a packet's worth of columns at a time.
   WorkerPool pool(flags.threads, realtime ? 0 : 5);
-  const RigContext rig{io, scene, motion.poses(), pool, flags.lock_step ? 0 : epoch_steady_ns, motion.live.get()};
+  // One time base for every sensor: their timestamps, HTTP clocks and telemetry agree.
+  const RigContext rig{io,
+                       scene,
+                       motion.poses(),
+                       pool,
+                       flags.lock_step ? 0 : epoch_steady_ns,
+                       motion.live.get(),
+                       motion.waits_for_client ? motion.trajectory.get() : nullptr,
+                       std::make_shared<const TimeBase>(TimeBase::from_host())};
   std::unique_ptr<PoseReceiver> receiver;
   if (motion.live) receiver = std::make_unique<PoseReceiver>(io, *motion.live, pose_udp_endpoint(flags));
   std::vector<std::unique_ptr<VirtualSensor>> sensors;
@@ -262,13 +247,14 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--scene", flags->scene, "glTF scene (default scenes/plant.glb)");
   auto* trajectory = sub->add_option("--trajectory", flags->trajectory,
                                      "TUM trajectory (default scenes/plant_inspection.tum with the default scene)");
-  sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\"")->excludes(trajectory);
+  auto* pose_flag = sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\"")->excludes(trajectory);
   sub->add_option("--address", flags->address, "the sensor's IPv4 address (HTTP and UDP source)")
       ->capture_default_str();
   sub->add_option("--http-port", flags->http_port, "HTTP port (80 as on a real sensor; 0 = any)")
       ->check(CLI::Range(0, 65535))
       ->capture_default_str();
   sub->add_option("--seed", flags->seed, "noise seed")->capture_default_str();
+  add_ideal_flag(*sub, flags->ideal);
   sub->add_option("--serial-number", flags->serial_number,
                   "prod_sn, 1 to 12 digits (default 122201 + digits from --address; give each sensor of a "
                   "rig its own when they all bind 0.0.0.0)")
@@ -281,6 +267,14 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--threads", flags->threads, "ray casting threads (0 = all cores)")->check(CLI::Range(0, 1024));
   sub->add_option("--spin-us", flags->spin_us, "wake this early and spin to each packet's deadline (0 = sleep only)")
       ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  sub->add_option("--trajectory-end", flags->trajectory_end,
+                  "what the trajectory's end means: hold (the last pose), loop, stop (streaming); default: loop "
+                  "if it closes (last pose within 1 cm and 0.057 deg of the first), else hold")
+      ->excludes(pose_flag);
+  sub->add_option("--motion-start", flags->motion_start,
+                  "when the trajectory starts: daemon (when it starts), configured (when a client first "
+                  "reinitializes the sensor or, if it never does, reads sensor/metadata)")
       ->capture_default_str();
   sub->add_flag("--live-poses", flags->live_poses,
                 "poses arrive live: POST /lidartwin/v1/pose (and UDP with --pose-udp); docs/live-poses.md")

@@ -23,13 +23,16 @@ namespace lidartwin::cli {
 
 struct ServeFlags {
   std::string profile = "os1-64";
-  std::string scene;       // empty: scenes/plant.glb
-  std::string trajectory;  // empty: scenes/plant_inspection.tum with the default scene
-  std::string pose;        // "x y z qx qy qz qw": a sensor standing still
+  std::string scene;                    // empty: scenes/plant.glb
+  std::string trajectory;               // empty: scenes/plant_inspection.tum with the default scene
+  std::string pose;                     // "x y z qx qy qz qw": a sensor standing still
+  std::string trajectory_end;           // hold, loop, stop; empty: loop if it closes, else hold
+  std::string motion_start = "daemon";  // or "configured": when a client first configures the sensor
   std::string address = "127.0.0.1";
   std::string serial_number;  // empty: 122201 + six digits from the address
   int http_port = 80;
   uint64_t seed = 0;
+  bool ideal = false;  // no noise (cli/sensor_physics.h), as record --ideal
   std::string record_dir;
   std::string lidar_mode;   // empty: the sensor's default (1024x10) or the state file's
   std::string udp_profile;  // likewise

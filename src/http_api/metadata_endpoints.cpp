@@ -14,7 +14,10 @@ namespace {
 ApiResponse get_sensor_info(Sensor& sensor, const ApiRequest&) { return json_response(sensor.sensor_info()); }
 
 // All 7 sections + imu_data_format (protocol doc 1.7, 3.1).
-ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) { return {200, sensor.metadata_text(), {}}; }
+ApiResponse get_metadata(Sensor& sensor, const ApiRequest&) {
+  sensor.metadata_read();
+  return {200, sensor.metadata_text(), {}};
+}
 
 // Any section by name, as the FW and the SDK's replay server do (protocol doc 2.3).
 ApiResponse get_metadata_section(Sensor& sensor, const ApiRequest& request) {

@@ -16,22 +16,22 @@ double seconds_since_epoch() {
   return duration<double>(system_clock::now().time_since_epoch()).count();
 }
 
-double seconds_since_start(const Sensor& sensor) {
-  using namespace std::chrono;
-  return duration<double>(steady_clock::now() - sensor.start_time()).count();
-}
+// Every time these endpoints report is the sensor's time base (sensor/time_base.h): the clocks the
+// packets are stamped on, read at one steady-clock instant per request.
+double seconds(int64_t ns) { return static_cast<double>(ns) * 1e-9; }
 
 // The replay tool's shape with numbers, plus what the streamer reports (StreamStats).
 ApiResponse get_telemetry(Sensor& sensor, const ApiRequest&) {
   const auto stats = sensor.stream_stats();
   const bool phase_lock = sensor.active_config().value("phase_lock_enable", false);
-  const auto uptime_ns = static_cast<int64_t>(seconds_since_start(sensor) * 1e9);
+  // The sensor's time in its timestamp_mode, as the packets it sends now carry.
+  const int64_t now_ns = sensor.time().now_ns(sensor.timestamp_mode());
   return json_response({
       {"input_current_ma", 693},
       {"input_voltage_mv", 23879},
       {"internal_temperature_deg_c", 48},
       {"phase_lock_status", phase_lock ? "LOCKED" : "DISABLED"},
-      {"timestamp_ns", uptime_ns},
+      {"timestamp_ns", now_ns},
       {"lidartwin",
        {{"lidar_packets_sent", stats.lidar_packets_sent},
         {"imu_packets_sent", stats.imu_packets_sent},
@@ -43,19 +43,27 @@ ApiResponse get_telemetry(Sensor& sensor, const ApiRequest&) {
   });
 }
 
+// The sensor's Linux clocks: its CLOCK_MONOTONIC is the internal oscillator's time (since power-on).
 ApiResponse get_time_system(Sensor& sensor, const ApiRequest&) {
-  return json_response({{"monotonic", seconds_since_start(sensor)}, {"realtime", seconds_since_epoch()}});
+  return json_response(
+      {{"monotonic", seconds(sensor.time().now_ns(TimestampMode::kInternalOsc))}, {"realtime", seconds_since_epoch()}});
 }
 
-// A reduced FW 2.x/3.x shape: the time source follows the active timestamp_mode.
+// A reduced FW 2.x/3.x shape: "time" is the active timestamp_mode's clock, "time_options" what
+// each clock reads at the same instant (seconds).
 ApiResponse get_time_sensor(Sensor& sensor, const ApiRequest&) {
   const auto config = sensor.active_config();
-  const double osc = seconds_since_start(sensor);
+  const TimeBase& time = sensor.time();
+  const int64_t steady_ns = TimeBase::steady_now_ns();
+  const auto at = [&](TimestampMode mode) { return seconds(time.time_ns(mode, steady_ns)); };
   return json_response({
       {"timestamp",
        {{"mode", config.value("timestamp_mode", "TIME_FROM_INTERNAL_OSC")},
-        {"time", osc},
-        {"time_options", {{"internal_osc", osc}, {"sync_pulse_in", 0}, {"ptp_1588", 0}}}}},
+        {"time", at(sensor.timestamp_mode())},
+        {"time_options",
+         {{"internal_osc", at(TimestampMode::kInternalOsc)},
+          {"sync_pulse_in", at(TimestampMode::kSyncPulseIn)},
+          {"ptp_1588", at(TimestampMode::kPtp1588)}}}}},
       {"sync_pulse_in",
        {{"locked", 0},
         {"polarity", config.value("sync_pulse_in_polarity", "ACTIVE_HIGH")},

@@ -1,7 +1,11 @@
 #include "lidartwin/rig/virtual_sensor.h"
 
+#include <algorithm>
+#include <cmath>
 #include <condition_variable>
 #include <mutex>
+
+#include <spdlog/spdlog.h>
 
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/json/json_reader.h"
@@ -21,6 +25,20 @@ StreamerOptions with_faults(StreamerOptions options, VirtualSensor& sensor, Faul
   options.on_sensor_fault = [&sensor](SensorFaultEvent event) { sensor.on_sensor_fault(event); };
   return options;
 }
+// One time base for the sensor and its streamer (and, through the rig, for every sensor).
+RigContext with_time_base(RigContext rig) {
+  if (!rig.time) rig.time = std::make_shared<const TimeBase>(TimeBase::from_host());
+  return rig;
+}
+SensorOptions with_time(SensorOptions options, const RigContext& rig, VirtualSensor& sensor) {
+  options.time = rig.time;
+  if (rig.waiting_motion) options.on_client = [&sensor](ClientEvent event) { sensor.on_client(event); };
+  return options;
+}
+StreamerOptions with_time(StreamerOptions options, const RigContext& rig) {
+  options.time = rig.time;
+  return options;
+}
 // The live poses' clock offset (host steady - pose clock) once a pose has come.
 StreamerOptions with_pose_clock(StreamerOptions options, LivePoses* live, bool stamp_pose_clock) {
   if (!live || !stamp_pose_clock) return options;
@@ -34,7 +52,7 @@ StreamerOptions with_pose_clock(StreamerOptions options, LivePoses* live, bool s
 }  // namespace
 
 VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
-    : rig_(rig),
+    : rig_(with_time_base(rig)),
       poses_(rig.poses, setup.mounting),
       per_column_poses_(setup.per_column_poses),
       lock_step_(setup.streamer.lock_step),
@@ -43,16 +61,18 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
       max_range_m_(setup.max_range_m),
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
+      frames_ahead_(setup.streamer.frames_ahead),
       faults_(std::move(setup.faults)),
       fault_timer_(rig.io),
-      sensor_(std::move(setup.identity), std::move(setup.sensor)),
+      sensor_(std::move(setup.identity), with_time(std::move(setup.sensor), rig_, *this)),
       http_(sensor_, with_extensions(std::move(setup.http), *this, faults_)),
       streamer_(
           rig.io,
           [this](const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns) {
             return make_model(config, start_steady_ns, origin_ns);
           },
-          with_faults(with_pose_clock(std::move(setup.streamer), rig.live, setup.stamp_pose_clock), *this, faults_)) {}
+          with_faults(with_pose_clock(with_time(std::move(setup.streamer), rig_), rig.live, setup.stamp_pose_clock),
+                      *this, faults_)) {}
 
 // lidartwin's own endpoints: faults always, live poses when they arrive live.
 ApiResponse VirtualSensor::lidartwin_endpoint(const ApiRequest& request) {
@@ -98,17 +118,65 @@ VirtualSensor::~VirtualSensor() {
 // The model of the config as served: its beams (lidar_frame_azimuth_offset rotates them), format,
 // signal_multiplier and identity; the profile's physics; the rig's motion on the rig's time.
 std::unique_ptr<ForwardModel> VirtualSensor::make_model(const StreamConfig& config, int64_t start_steady_ns,
-                                                        uint64_t origin_ns) const {
+                                                        uint64_t origin_ns) {
   const LidarDataFormat& format = config.metadata.format;
   ForwardModelSetup setup;
   setup.render = {config.metadata.beams, format, max_range_m_, chain_, seed_, config.signal_multiplier};
   setup.origin_ns = origin_ns;
-  setup.pose_origin_s = rig_.poses.start_s() + static_cast<double>(start_steady_ns - rig_.epoch_steady_ns) * 1e-9;
+  setup.pose_origin_s = rig_time_s(start_steady_ns);
   setup.init_id = config.init_id;
   setup.prod_sn = config.prod_sn;
   setup.per_column_poses = per_column_poses_;
   setup.imu_noise = imu_noise_;
+  on_session(setup.pose_origin_s, format.fps);
   return std::make_unique<ForwardModel>(rig_.scene, poses_, std::move(setup), rig_.pool);
+}
+
+// The pose source's time at a steady-clock instant.
+double VirtualSensor::rig_time_s(int64_t steady_ns) const {
+  return rig_.poses.start_s() + static_cast<double>(steady_ns - rig_.epoch_steady_ns) * 1e-9;
+}
+
+// A session begins (io thread, before it casts anything): a motion a client's reinit asked for
+// starts with its frame 0, so the stream the client configured shows the trajectory from its start.
+void VirtualSensor::on_session(double pose_origin_s, int fps) {
+  {
+    std::lock_guard lock(session_mutex_);
+    session_frames_ = SessionFrames{pose_origin_s, fps};
+  }
+  if (!rig_.waiting_motion || !start_motion_with_session_.exchange(false)) return;
+  if (rig_.waiting_motion->start_at(pose_origin_s)) {
+    spdlog::info("serve: a client configured {}: the motion starts with frame 0 of its stream (pose time {:.3f} s)",
+                 sensor_.identity().prod_sn, pose_origin_s);
+  }
+}
+
+// serve --motion-start configured. A reinit starts the motion with the session it starts (above).
+// A client that never reinitializes (SDK 1.0's SensorPacketSource when the config already suits
+// it) reads the metadata before it streams: the motion then starts at the first frame of the
+// running session that the streamer cannot have cast yet (it casts frames_ahead frames beyond the
+// one being sent), so every packet and the ground truth show the pose it was cast from.
+void VirtualSensor::on_client(ClientEvent event) {
+  if (!rig_.waiting_motion || rig_.waiting_motion->started_at()) return;
+  if (event == ClientEvent::kReinit) {
+    start_motion_with_session_ = true;
+    return;
+  }
+  if (start_motion_with_session_) return;  // a reinit's session starts it
+  std::lock_guard lock(session_mutex_);
+  if (!session_frames_) {
+    start_motion_with_session_ = true;  // not streaming yet: with the first session
+    return;
+  }
+  const auto [origin_s, fps] = *session_frames_;
+  const double earliest_s = rig_time_s(TimeBase::steady_now_ns()) + (frames_ahead_ + 1.0) / fps;
+  const double frame = std::max(std::ceil((earliest_s - origin_s) * fps), frames_ahead_ + 1.0);
+  const double start_s = origin_s + frame / fps;
+  if (rig_.waiting_motion->start_at(start_s)) {
+    spdlog::info(
+        "serve: a client read {}'s metadata: the motion starts with frame {:.0f} of its stream (pose time {:.3f} s)",
+        sensor_.identity().prod_sn, frame, start_s);
+  }
 }
 
 void VirtualSensor::start() {

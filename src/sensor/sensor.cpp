@@ -55,7 +55,9 @@ std::optional<UserDataPolicy> user_data_policy_from_string(std::string_view text
 }
 
 Sensor::Sensor(SensorIdentity identity, SensorOptions options)
-    : identity_(std::move(identity)), options_(std::move(options)) {
+    : identity_(std::move(identity)),
+      options_(std::move(options)),
+      time_(options_.time ? options_.time : std::make_shared<const TimeBase>(TimeBase::from_host())) {
   parse_prod_sn(identity_.prod_sn);  // throws early, naming the identity's bad serial
   // Start-up order: firmware defaults, then what was persisted, then the caller's overrides.
   saved_ = default_config_params();
@@ -139,6 +141,12 @@ json Sensor::active_config() const {
   return active_;
 }
 
+TimestampMode Sensor::timestamp_mode() const {
+  std::lock_guard lock(mutex_);
+  // Validated on the way in (config_rules), so one of the three.
+  return timestamp_mode_from_string(stream_->timestamp_mode).value_or(TimestampMode::kInternalOsc);
+}
+
 json Sensor::staged_config() const {
   std::lock_guard lock(mutex_);
   return staged_;
@@ -166,7 +174,12 @@ void Sensor::reinit() {
     hold_stream_locked();
     stream = stream_;
   }
+  if (options_.on_client) options_.on_client(ClientEvent::kReinit);
   notify(stream);
+}
+
+void Sensor::metadata_read() const {
+  if (options_.on_client) options_.on_client(ClientEvent::kMetadataRead);
 }
 
 void Sensor::hold_stream_locked() {

@@ -1,6 +1,10 @@
 #include "streamer/stream_session.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+
+#include <spdlog/spdlog.h>
 
 #include "lidartwin/packet/imu_packet.h"
 
@@ -51,7 +55,7 @@ void StreamSession::start() {
 // every packet of every frame, stamped on its clock, as soon as its time has come.
 void StreamSession::advance_to(uint64_t time_ns) {
   if (stopped_) return;
-  while (packets_per_frame_ > 0 && model_->packet_timestamp_ns(frame_, packet_index_) <= time_ns) {
+  while (packets_per_frame_ > 0 && !lidar_ended() && model_->packet_timestamp_ns(frame_, packet_index_) <= time_ns) {
     counters_.stats.columns_without_pose += model_->render(frame_, packet_index_, packet_index_ + 1, step_);
     if (link_.send_lidar(model_->packet(step_, packet_index_), frame_, packet_index_,
                          model_->packet_columns()[packet_index_], config_->udp_port_lidar)) {
@@ -60,7 +64,7 @@ void StreamSession::advance_to(uint64_t time_ns) {
     }
     advance_lidar();
   }
-  while (options_.send_imu && timing_.clock.imu_timestamp_ns(imu_index_) <= time_ns) send_imu_packet();
+  while (options_.send_imu && !imu_ended() && timing_.clock.imu_timestamp_ns(imu_index_) <= time_ns) send_imu_packet();
 }
 
 void StreamSession::stop() {
@@ -95,6 +99,10 @@ void StreamSession::on_lidar_deadline() {
   skip_overdue_lidar(now);
   // Normally exactly one packet is due; after a short delay, every packet whose time has come.
   while (lidar_deadline_ns() <= now) {
+    if (lidar_ended()) {
+      note_end();
+      return;  // not armed again: the stream is over
+    }
     send_lidar_packet(now);
     advance_lidar();
     now = steady_now_ns();
@@ -158,6 +166,10 @@ void StreamSession::on_imu_deadline() {
     ++counters_.imu_skipped;
     ++imu_index_;
   }
+  if (imu_ended()) {
+    note_end();
+    return;
+  }
   send_imu_packet();
   arm_imu();
 }
@@ -167,6 +179,29 @@ void StreamSession::send_imu_packet() {
   model_->imu_packet(imu_index_, bytes);
   if (link_.send_imu(bytes, imu_index_, config_->udp_port_imu)) ++counters_.stats.imu_packets_sent;
   ++imu_index_;
+}
+
+// The pose time at which streaming ends: the start of the first frame that starts at or after the
+// motion's end (frame starts as SensorClock::column_pose_time_s computes them, so they compare
+// exactly). +infinity while the motion has no end.
+double StreamSession::stream_end_pose_s() const {
+  const double end_s = model_->poses().end_s();
+  if (std::isinf(end_s)) return end_s;
+  const SensorClock& clock = timing_.clock;
+  const double frames = std::max(0.0, std::ceil((end_s - clock.pose_origin_s) * clock.fps));
+  return clock.pose_origin_s + frames / clock.fps;
+}
+
+bool StreamSession::lidar_ended() const { return timing_.clock.column_pose_time_s(frame_, 0) >= stream_end_pose_s(); }
+
+bool StreamSession::imu_ended() const { return timing_.clock.imu_pose_time_s(imu_index_) >= stream_end_pose_s(); }
+
+void StreamSession::note_end() {
+  if (end_noted_) return;
+  end_noted_ = true;
+  spdlog::info(
+      "streamer: the motion ended (trajectory end \"stop\"): streaming stopped after frame {}, pose time {:.3f} s",
+      frame_, stream_end_pose_s());
 }
 
 }  // namespace lidartwin::streamer_detail

@@ -31,6 +31,9 @@ namespace lidartwin::streamer_detail {
 // - Packets overdue by more than one frame period (the process was descheduled for that long)
 //   are skipped and counted, rather than flushed as a burst that would overflow the client's
 //   receive buffer (item 12).
+// - When the motion ends (PoseSource::end_s(), serve --trajectory-end stop), the frames that
+//   started before it are sent whole, so a client's last scan is complete, and nothing after them,
+//   lidar or IMU.
 class StreamSession : public std::enable_shared_from_this<StreamSession> {
  public:
   // The session renders ahead with `model` when the lidar stream is on (udp_port_lidar != 0) and
@@ -70,6 +73,10 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   void arm_imu();
   void on_imu_deadline();
   void send_imu_packet();
+  bool lidar_ended() const;
+  bool imu_ended() const;
+  double stream_end_pose_s() const;
+  void note_end();
 
   asio::steady_timer lidar_timer_;
   asio::steady_timer imu_timer_;
@@ -88,6 +95,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   size_t packet_index_ = 0;
   uint64_t imu_index_ = 0;
   bool stopped_ = false;
+  bool end_noted_ = false;
 };
 
 }  // namespace lidartwin::streamer_detail

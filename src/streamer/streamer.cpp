@@ -19,8 +19,6 @@ using streamer_detail::SessionTiming;
 using streamer_detail::steady_now_ns;
 
 namespace {
-constexpr int64_t kTaiMinusUtcNs = 37'000'000'000;  // leap seconds since 2017
-
 std::filesystem::path capture_path(const StreamerOptions& options) {
   if (options.record_dir.empty()) return {};
   std::error_code error;
@@ -30,11 +28,14 @@ std::filesystem::path capture_path(const StreamerOptions& options) {
 }
 
 // Column timestamps in the config's timestamp_mode (6.3); see the Streamer comment.
-int64_t timestamp_offset_ns(const StreamConfig& config) {
-  if (config.timestamp_mode != "TIME_FROM_PTP_1588") return 0;
-  const auto wall =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-  return wall + kTaiMinusUtcNs - steady_now_ns();
+int64_t timestamp_offset_ns(const TimeBase& time, const StreamConfig& config) {
+  // Validated on the way in (config_rules), so one of the three.
+  return time.offset_ns(timestamp_mode_from_string(config.timestamp_mode).value_or(TimestampMode::kInternalOsc));
+}
+
+StreamerOptions with_time_base(StreamerOptions options) {
+  if (!options.time) options.time = std::make_shared<const TimeBase>(TimeBase::from_host());
+  return options;
 }
 
 void write_record_metadata(const std::filesystem::path& dir, const StreamConfig& config) {
@@ -52,7 +53,7 @@ std::string describe(const asio::ip::address_v4& address, uint16_t port) {
 Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOptions options)
     : io_(io),
       make_model_(std::move(make_model)),
-      options_(std::move(options)),
+      options_(with_time_base(std::move(options))),
       sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
       faults_(std::make_unique<streamer_detail::FaultInjector>(io, *sender_, options_.faults,
                                                                [this](SensorFaultEvent event) {
@@ -96,7 +97,7 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
 // On the host's clock, stamped per timestamp_mode, or on the live poses' clock once it is known.
 void Streamer::start_paced_session() {
   const int64_t start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
-  int64_t origin_ns = start_steady_ns + timestamp_offset_ns(*config_);
+  int64_t origin_ns = start_steady_ns + timestamp_offset_ns(*options_.time, *config_);
   if (options_.pose_clock_offset_ns) {
     const std::optional<int64_t> offset = options_.pose_clock_offset_ns();
     if (!offset) {

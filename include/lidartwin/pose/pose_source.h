@@ -44,6 +44,9 @@ class PoseSource {
   // The same pose at every time (a fixed pose, a trajectory whose samples are all one): `record`
   // then writes no per-column poses (every column's pose is poses.tum's).
   virtual bool constant() const { return false; }
+  // When the motion ends, on the source's clock: past it the sensor stops streaming (serve
+  // --trajectory-end stop). +infinity: the motion never ends (it holds, loops or arrives live).
+  virtual double end_s() const { return std::numeric_limits<double>::infinity(); }
 };
 
 // One pose forever.
@@ -88,6 +91,7 @@ class MountedPoses final : public PoseSource {
   double start_s() const override { return vehicle_.start_s(); }
   PoseFreshness freshness() const override { return vehicle_.freshness(); }
   bool constant() const override { return vehicle_.constant(); }
+  double end_s() const override { return vehicle_.end_s(); }
 
  private:
   const PoseSource& vehicle_;

@@ -3,8 +3,11 @@
 // streamer that follows the active config with packets from the forward model. A rig holds several,
 // sharing one scene, one motion, one io_context and one worker pool.
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <thread>
 
 #include <asio.hpp>
@@ -15,6 +18,7 @@
 #include "lidartwin/http_api/http_server.h"
 #include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose_source.h"
+#include "lidartwin/pose/trajectory_playback.h"
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/scene/scene.h"
 #include "lidartwin/sensor/sensor.h"
@@ -34,6 +38,12 @@ struct RigContext {
   // When poses arrive live (then `poses` is this, or mounts it): each sensor's HTTP server answers
   // /lidartwin/v1/pose with it.
   LivePoses* live = nullptr;
+  // A trajectory whose motion waits for a client (serve --motion-start configured; then `poses` is
+  // this): the first client to configure any of the rig's sensors starts it for all.
+  TrajectoryPlayback* waiting_motion = nullptr;
+  // The clocks every sensor's packets and HTTP API report time on (sensor/time_base.h), one for
+  // the rig so that its sensors' timestamps agree. Null: the rig reads the host's when it starts.
+  std::shared_ptr<const TimeBase> time = nullptr;
 };
 
 // Who one sensor is and how it is reached.
@@ -82,11 +92,20 @@ class VirtualSensor {
   ApiResponse lidartwin_endpoint(const ApiRequest& request);
   // The streamer's: a sensor fault of the plan is due (io thread).
   void on_sensor_fault(SensorFaultEvent event);
+  // The sensor's: a client reinitialized it or read its metadata (the client's HTTP thread).
+  void on_client(ClientEvent event);
 
  private:
-  std::unique_ptr<ForwardModel> make_model(const StreamConfig& config, int64_t start_steady_ns,
-                                           uint64_t origin_ns) const;
+  std::unique_ptr<ForwardModel> make_model(const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns);
   void pump_stats(const std::stop_token& stop);
+  double rig_time_s(int64_t steady_ns) const;
+  void on_session(double pose_origin_s, int fps);
+
+  // Where the current session's frames sit on the rig's clock, for a motion a metadata read starts.
+  struct SessionFrames {
+    double pose_origin_s = 0.0;
+    int fps = 10;
+  };
 
   RigContext rig_;
   MountedPoses poses_;  // the rig's motion carrying this sensor
@@ -97,8 +116,13 @@ class VirtualSensor {
   double max_range_m_;
   EffectChain chain_;
   uint64_t seed_;
-  FaultControl faults_;             // before the server and streamer, which read it
-  asio::steady_timer fault_timer_;  // ends an injected STANDBY or ERROR
+  int frames_ahead_;  // how far the streamer casts ahead of its send clock
+  // A client's reinit asked for the waiting motion to start with the next session's frame 0.
+  std::atomic<bool> start_motion_with_session_{false};
+  mutable std::mutex session_mutex_;
+  std::optional<SessionFrames> session_frames_;  // guarded by session_mutex_
+  FaultControl faults_;                          // before the server and streamer, which read it
+  asio::steady_timer fault_timer_;               // ends an injected STANDBY or ERROR
   Sensor sensor_;
   HttpServer http_;
   Streamer streamer_;

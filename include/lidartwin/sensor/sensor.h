@@ -19,6 +19,7 @@
 #include "lidartwin/profile/beam_intrinsics.h"
 #include "lidartwin/sensor/config_rules.h"
 #include "lidartwin/sensor/stream_config.h"
+#include "lidartwin/sensor/time_base.h"
 
 namespace lidartwin {
 
@@ -35,6 +36,12 @@ struct SensorIdentity {
   std::string build_date = "2024-04-26T02:34:31Z";
 };
 
+// What a client did that the daemon may wait for (serve --motion-start configured).
+enum class ClientEvent {
+  kReinit,        // a reinit activated the staged config (REST reinit=true, cmd reinitialize)
+  kMetadataRead,  // GET sensor/metadata: what every client reads before it streams (protocol doc 2.4 (b))
+};
+
 struct SensorOptions {
   // Where persist() saves the config and user data; restored at start. Empty = RAM only.
   std::filesystem::path state_file;
@@ -43,6 +50,12 @@ struct SensorOptions {
   // How long sensor_info reports "INITIALIZING" after a reinit. Clients poll every 1 s while it
   // does (protocol doc 2.4 (b)), so keep it short; 0 = never.
   std::chrono::milliseconds initializing_time{0};
+  // The clocks the sensor reports its time on (time/sensor, telemetry), the ones its packets are
+  // stamped on: a rig's sensors share one. Null: a time base of the sensor's own.
+  std::shared_ptr<const TimeBase> time = nullptr;
+  // Told of client events on the client's HTTP thread: kReinit after the config was activated and
+  // before subscribers hear of it. Must be quick and must not call the sensor.
+  std::function<void(ClientEvent)> on_client = nullptr;
 };
 
 // An entry of GET sensor/alerts (protocol doc 2.5: HIL tests read "active" and "log"; each entry
@@ -100,6 +113,8 @@ class Sensor {
   void reinit();
   // active -> saved, written to the state file (atomically) when there is one.
   void persist();
+  // The HTTP API says a client read the metadata (tells SensorOptions::on_client).
+  void metadata_read() const;
 
   // The sensor's own faults, as a user injects them (docs/fault-injection.md):
   // - restart(): as after a reset or power cycle, the active config streams again with a new
@@ -126,7 +141,9 @@ class Sensor {
 
   void set_stream_stats(const StreamStats& stats);
   StreamStats stream_stats() const;
-  std::chrono::steady_clock::time_point start_time() const { return start_time_; }
+  const TimeBase& time() const { return *time_; }
+  // The active config's timestamp_mode (protocol doc 6.3): the clock the sensor's time reads.
+  TimestampMode timestamp_mode() const;
 
  private:
   void activate_locked(const nlohmann::json& config);
@@ -137,7 +154,7 @@ class Sensor {
 
   const SensorIdentity identity_;
   const SensorOptions options_;
-  const std::chrono::steady_clock::time_point start_time_ = std::chrono::steady_clock::now();
+  const std::shared_ptr<const TimeBase> time_;
 
   mutable std::mutex mutex_;  // guards everything below
   nlohmann::json active_;

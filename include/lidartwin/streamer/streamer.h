@@ -16,6 +16,7 @@
 #include "lidartwin/fault/fault_control.h"
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/sensor/stream_config.h"
+#include "lidartwin/sensor/time_base.h"
 
 namespace lidartwin {
 
@@ -33,6 +34,9 @@ enum class SensorFaultEvent { kReset, kStandby, kError };
 
 struct StreamerOptions {
   std::array<uint8_t, 4> source_address{127, 0, 0, 1};  // the sensor's own address (item 8)
+  // The clocks packets are stamped on, per timestamp_mode: the sensor's own (Sensor::time()), which
+  // its HTTP API reports too. Null: a time base of the streamer's own.
+  std::shared_ptr<const TimeBase> time = nullptr;
   // Non-empty: capture.pcap + metadata.json of what is sent, and its ground truth poses.tum and
   // column_poses.tum (as `record` writes them).
   std::filesystem::path record_dir;
@@ -66,11 +70,11 @@ struct StreamerOptions {
 using ModelFactory = std::function<std::unique_ptr<ForwardModel>(const StreamConfig& config, int64_t start_steady_ns,
                                                                  uint64_t origin_ns)>;
 
-// Column timestamps (6.3): TIME_FROM_INTERNAL_OSC and TIME_FROM_SYNC_PULSE_IN carry the host's
-// CLOCK_MONOTONIC in ns (time since boot, as a real sensor's oscillator counts), so the timestamp
-// of a packet's last column is exactly the steady-clock instant it was due: a receiver on the same
+// Column and IMU timestamps (6.3) are the time base's (sensor/time_base.h): TIME_FROM_INTERNAL_OSC
+// and TIME_FROM_SYNC_PULSE_IN carry the host's CLOCK_MONOTONIC in ns, so the timestamp of a
+// packet's last column is exactly the steady-clock instant it was due: a receiver on the same
 // host measures send lateness as (receive CLOCK_MONOTONIC - that timestamp). TIME_FROM_PTP_1588
-// carries TAI ns (CLOCK_REALTIME + 37 s).
+// carries TAI ns, the same instant plus the time base's fixed offset.
 //
 // Lateness is also logged: a debug line every 10 s and an info line at stop(), "lateness p50 .. us,
 // p99 .. us, max .. us"; StreamStats carries late_packets, max_lateness_us, render_stalls and
