@@ -156,7 +156,7 @@ std::vector<PlannedSensor> plan_sensors(const ServeFlags& flags, int render_nice
   if (flags.rig.empty()) {
     entries.push_back({"", flags});
   } else {
-    entries = load_rig(flags.rig, flags);
+    entries = load_rig(find_input("--rig", flags.rig), flags);  // as given, else in the source tree (rigs/)
   }
   std::vector<PlannedSensor> planned;
   for (RigSensor& entry : entries) {
@@ -165,6 +165,7 @@ std::vector<PlannedSensor> plan_sensors(const ServeFlags& flags, int render_nice
     try {
       SensorChoice choice = load_sensor(entry.flags.profile);
       VirtualSensorSetup setup = sensor_setup(entry.flags, choice, parse_address(entry.flags.address), render_nice);
+      setup.streamer.name = entry.name;
       planned.push_back({std::move(entry), std::move(choice), std::move(setup), context});
     } catch (const InputError& e) {
       throw InputError(context + e.what());

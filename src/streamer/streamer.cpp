@@ -54,6 +54,7 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
     : io_(io),
       make_model_(std::move(make_model)),
       options_(with_time_base(std::move(options))),
+      tag_(options_.name.empty() ? std::string() : " (" + options_.name + ")"),
       sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
       faults_(std::make_unique<streamer_detail::FaultInjector>(io, *sender_, options_.faults,
                                                                [this](SensorFaultEvent event) {
@@ -84,11 +85,12 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
   stop_session();
   config_ = config;
   if (!config->streaming) {
-    spdlog::info("streamer: not sending: STANDBY or a sensor fault (config generation {})", config->generation);
+    spdlog::info("streamer{}: not sending: STANDBY or a sensor fault (config generation {})", tag_, config->generation);
     return;
   }
   if (options_.lock_step) {
-    spdlog::info("streamer: lock-step: config generation {} starts at the next simulation time", config->generation);
+    spdlog::info("streamer{}: lock-step: config generation {} starts at the next simulation time", tag_,
+                 config->generation);
     return;
   }
   start_paced_session();
@@ -101,13 +103,13 @@ void Streamer::start_paced_session() {
   if (options_.pose_clock_offset_ns) {
     const std::optional<int64_t> offset = options_.pose_clock_offset_ns();
     if (!offset) {
-      spdlog::info("streamer: config generation {} starts with the first pose (stamped on the poses' clock)",
+      spdlog::info("streamer{}: config generation {} starts with the first pose (stamped on the poses' clock)", tag_,
                    config_->generation);
       return;
     }
     origin_ns = start_steady_ns - *offset;
     if (origin_ns < 0) {
-      spdlog::error("streamer: the poses' clock reads {} ns, before zero: packets cannot carry it", origin_ns);
+      spdlog::error("streamer{}: the poses' clock reads {} ns, before zero: packets cannot carry it", tag_, origin_ns);
       return;
     }
   }
@@ -116,7 +118,7 @@ void Streamer::start_paced_session() {
   } catch (const std::exception& e) {
     // The sensor validated the config; a format the packet encoder refuses is reported, and the
     // daemon stays up without streaming until the next reinit.
-    spdlog::error("streamer: cannot stream config generation {}: {}", config_->generation, e.what());
+    spdlog::error("streamer{}: cannot stream config generation {}: {}", tag_, config_->generation, e.what());
   }
 }
 
@@ -139,7 +141,7 @@ void Streamer::advance_to(int64_t time_ns) {
       try {
         start_session(config_, time_ns, time);
       } catch (const std::exception& e) {
-        spdlog::error("streamer: cannot stream config generation {}: {}", config_->generation, e.what());
+        spdlog::error("streamer{}: cannot stream config generation {}: {}", tag_, config_->generation, e.what());
         return;
       }
     }
@@ -152,18 +154,19 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config, int64_t
   const UdpProfileImu imu_profile = format.udp_profile_imu;
   const bool imu = config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kLegacy;
   if (config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kAccel32Gyro32Nmea) {
-    spdlog::warn("streamer: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent");
+    spdlog::warn("streamer{}: udp_profile_imu ACCEL32_GYRO32_NMEA is not emulated; no IMU packets are sent", tag_);
   }
   SessionTiming timing;
   timing.start_steady_ns = start_steady_ns;
   std::unique_ptr<ForwardModel> model = make_model_(*config, start_steady_ns, origin_ns);
   timing.clock = model->clock();
-  spdlog::info("streamer: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}",
+  spdlog::info("streamer{}: lidar {} {} ({} packets of {} B per frame) from {}:{} to {}, init_id {}", tag_,
                to_string(LidarMode{format.columns_per_frame, format.fps}), to_string(format.udp_profile_lidar),
                model->packet_columns().size(), model->packet_size(),
                asio::ip::address_v4(options_.source_address).to_string(), sender_->source_port(),
                describe(asio::ip::address_v4(config->udp_dest), config->udp_port_lidar), config->init_id);
-  spdlog::info("streamer: IMU to {}", describe(asio::ip::address_v4(config->udp_dest), imu ? config->udp_port_imu : 0));
+  spdlog::info("streamer{}: IMU to {}", tag_,
+               describe(asio::ip::address_v4(config->udp_dest), imu ? config->udp_port_imu : 0));
   write_record_metadata(options_.record_dir, *config);
   streamer_detail::StreamSession::Options session_options;
   session_options.send_imu = imu;
@@ -197,9 +200,9 @@ void Streamer::stop() {
   if (ground_truth_) ground_truth_->close();
   const auto& stats = counters_->stats;
   spdlog::info(
-      "streamer: stopped after {} lidar packets ({} frames) and {} IMU packets; send lateness {}; "
+      "streamer{}: stopped after {} lidar packets ({} frames) and {} IMU packets; send lateness {}; "
       "{} render stalls, {} skipped",
-      stats.lidar_packets_sent, stats.frames_sent, stats.imu_packets_sent, counters_->lateness.summary(),
+      tag_, stats.lidar_packets_sent, stats.frames_sent, stats.imu_packets_sent, counters_->lateness.summary(),
       stats.render_stalls, counters_->skipped_packets);
 }
 

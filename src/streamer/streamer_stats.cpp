@@ -34,7 +34,7 @@ void Streamer::report_stats() {
   stats.render_load = static_cast<double>(busy_ns) / static_cast<double>(kStatsPeriodNs);
   warn_if_behind(stats.render_load);
   if (++stats_ticks_ % kDebugLogTicks == 0) {
-    spdlog::debug("streamer: {} lidar, {} IMU packets; recent send lateness {}; render load {:.2f}",
+    spdlog::debug("streamer{}: {} lidar, {} IMU packets; recent send lateness {}; render load {:.2f}", tag_,
                   stats.lidar_packets_sent, stats.imu_packets_sent, counters_->recent_lateness.summary(),
                   stats.render_load);
     counters_->recent_lateness = {};
@@ -52,23 +52,23 @@ void Streamer::warn_if_behind(double render_load) {
   if (!news || now - last_warning_ns_ < kWarningIntervalNs) return;
   if (stats.render_stalls > warned_stalls_) {
     spdlog::warn(
-        "streamer: casting is behind the send clock: {} packets sent on time with their columns marked "
+        "streamer{}: casting is behind the send clock: {} packets sent on time with their columns marked "
         "invalid ({} in total; render load {:.2f}; try fewer --threads elsewhere, a smaller scene or mode)",
-        stats.render_stalls - warned_stalls_, stats.render_stalls, render_load);
+        tag_, stats.render_stalls - warned_stalls_, stats.render_stalls, render_load);
   }
   if (skipped > warned_skips_) {
-    spdlog::warn("streamer: the host stalled the send clock for more than a frame: {} packets skipped ({} in total)",
-                 skipped - warned_skips_, skipped);
+    spdlog::warn("streamer{}: the host stalled the send clock for more than a frame: {} packets skipped ({} in total)",
+                 tag_, skipped - warned_skips_, skipped);
   }
   if (sender_->errors() > warned_errors_) {
-    spdlog::warn("streamer: {} UDP sends failed ({} in total; the last: {}); streaming goes on",
+    spdlog::warn("streamer{}: {} UDP sends failed ({} in total; the last: {}); streaming goes on", tag_,
                  sender_->errors() - warned_errors_, sender_->errors(), sender_->last_error());
   }
   if (stats.columns_without_pose > warned_unposed_ || stats.withheld_packets > warned_withheld_) {
     spdlog::warn(
-        "streamer: {} columns had no pose ({} in total; {}), {} packets withheld ({} in total): the live "
+        "streamer{}: {} columns had no pose ({} in total; {}), {} packets withheld ({} in total): the live "
         "pose stream is late or stalled (GET /lidartwin/v1/pose)",
-        stats.columns_without_pose - warned_unposed_, stats.columns_without_pose,
+        tag_, stats.columns_without_pose - warned_unposed_, stats.columns_without_pose,
         options_.withhold_unposed ? "not sent" : "sent with status 0", stats.withheld_packets - warned_withheld_,
         stats.withheld_packets);
   }

@@ -34,6 +34,8 @@ enum class SensorFaultEvent { kReset, kStandby, kError };
 
 struct StreamerOptions {
   std::array<uint8_t, 4> source_address{127, 0, 0, 1};  // the sensor's own address (item 8)
+  // A rig's sensor name: its log lines read "streamer (roof): ..." (empty: a lone sensor's).
+  std::string name;
   // The clocks packets are stamped on, per timestamp_mode: the sensor's own (Sensor::time()), which
   // its HTTP API reports too. Null: a time base of the streamer's own.
   std::shared_ptr<const TimeBase> time = nullptr;
@@ -116,6 +118,7 @@ class Streamer {
   asio::io_context& io_;
   ModelFactory make_model_;
   StreamerOptions options_;
+  std::string tag_;  // " (roof)" after "streamer" in log lines, for a rig's sensor
   std::unique_ptr<streamer_detail::UdpSender> sender_;
   std::unique_ptr<streamer_detail::FaultInjector> faults_;  // between the sessions and sender_
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
