@@ -4,8 +4,10 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <signal.h>
 #include <unistd.h>
@@ -15,6 +17,7 @@
 
 #include "cli/command.h"
 #include "cli/format_validators.h"
+#include "cli/rig_file.h"
 #include "cli/sensor_physics.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/error.h"
@@ -47,6 +50,7 @@ struct RecordFlags {
   int columns_per_packet = 16;
   bool ideal = false;
   double uptime_s = kDefaultUptimeS;
+  std::string rig;  // --rig FILE: a capture per sensor of the rig (docs/rig.md), in OUT/<name>/
 };
 
 std::unique_ptr<PoseSource> load_poses(const RecordFlags& flags) {
@@ -160,7 +164,79 @@ std::atomic<bool> stop_requested{false};
 static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
 extern "C" void request_stop(int) { stop_requested.store(true); }
 
+void catch_stop_signals() {
+  struct sigaction action {};
+  action.sa_handler = request_stop;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+// --rig: each sensor recorded in turn from the same vehicle motion, carried by its mounting, into
+// OUT/<name>/, with its own metadata (its serial number as serve gives it, its seed, mode and
+// profile) and ground truth. Frame k of every sensor starts at the same time: the captures share
+// one time base. The rig file's serve-only keys (http_port, state_file, record, fault) are unused.
+int run_record_rig(const RecordFlags& flags) {
+  ServeFlags base;
+  base.seed = flags.seed;
+  const auto rig_file = find_input("--rig", flags.rig);
+  const std::vector<RigSensor> sensors = load_rig(rig_file, base);
+  struct Planned {
+    RecordFlags flags;
+    SensorChoice choice;
+    Metadata metadata;
+    Pose mounting;
+  };
+  std::vector<Planned> planned;
+  for (const RigSensor& sensor : sensors) {  // every sensor checked before any is recorded
+    try {
+      RecordFlags f = flags;
+      f.profile = sensor.flags.profile;
+      f.seed = sensor.flags.seed;
+      f.out = (std::filesystem::path(flags.out) / sensor.name).string();
+      if (!sensor.flags.lidar_mode.empty()) {
+        f.mode = sensor.flags.lidar_mode;
+        f.mode_given = true;
+      }
+      if (!sensor.flags.udp_profile.empty()) {
+        f.udp_profile = sensor.flags.udp_profile;
+        f.udp_profile_given = true;
+      }
+      SensorChoice choice = load_sensor(f.profile);
+      Metadata metadata = make_record_metadata(f, choice);
+      metadata.sensor_info.prod_sn =
+          make_identity(choice, parse_address(sensor.flags.address), sensor.flags.serial_number).prod_sn;
+      planned.push_back({std::move(f), std::move(choice), std::move(metadata), mounting(sensor.flags)});
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("--rig {}: sensor \"{}\": {}", flags.rig, sensor.name, e.what()));
+    }
+  }
+  const std::unique_ptr<PoseSource> vehicle = load_poses(flags);
+  const Scene scene = Scene::load(flags.scene);
+  catch_stop_signals();
+  for (Planned& p : planned) {
+    const MountedPoses poses(*vehicle, p.mounting);
+    SensorPhysics physics = sensor_physics(p.choice.profile, flags.ideal);
+    const ProgressBar bar(flags.frames, p.metadata.format.fps);
+    const int frames =
+        record({scene, poses, p.choice.profile.max_range_m, std::move(physics.chain), p.metadata, p.flags.seed,
+                flags.threads, flags.frames, p.flags.out, physics.imu, flags.uptime_s, &stop_requested},
+               [&bar](int done) { bar.update(done); });
+    if (frames < flags.frames) {
+      std::fprintf(stderr, "\nrecord: interrupted after %d of %d frames of %s; %s holds them, every file complete\n",
+                   frames, flags.frames, p.flags.out.c_str(), p.flags.out.c_str());
+      return 130;
+    }
+    std::printf("recorded %d frames of %s (%s, sn %s) to %s\n", frames, p.choice.profile.name.c_str(),
+                p.metadata.config_params.value("lidar_mode", "").c_str(), p.metadata.sensor_info.prod_sn.c_str(),
+                p.flags.out.c_str());
+  }
+  return 0;
+}
+
 int run_record(const RecordFlags& flags) {
+  if (!flags.rig.empty()) return run_record_rig(flags);
+  if (flags.profile.empty()) throw InputError("record: give --profile (or --rig)");
   const SensorChoice sensor = load_sensor(flags.profile);
   const SensorProfile& profile = sensor.profile;
   const Metadata metadata = make_record_metadata(flags, sensor);
@@ -168,11 +244,7 @@ int run_record(const RecordFlags& flags) {
   const Scene scene = Scene::load(flags.scene);
   SensorPhysics physics = sensor_physics(profile, flags.ideal);
   const ProgressBar bar(flags.frames, metadata.format.fps);
-  struct sigaction action {};
-  action.sa_handler = request_stop;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  catch_stop_signals();
   const int frames = record({scene, *poses, profile.max_range_m, std::move(physics.chain), metadata, flags.seed,
                              flags.threads, flags.frames, flags.out, physics.imu, flags.uptime_s, &stop_requested},
                             [&bar](int done) { bar.update(done); });
@@ -192,8 +264,7 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
   CLI::App* sub = app.add_subcommand("record", "Render a capture offline: DIR/capture.pcap, metadata.json, poses.tum");
   sub->add_option("--profile", flags->profile,
                   "sensor profile name (e.g. os1-64) or .json path, or a unit's metadata .json (a twin of that unit: "
-                  "its mode, udp profile and columns per packet unless given)")
-      ->required();
+                  "its mode, udp profile and columns per packet unless given)");
   sub->add_option("--scene", flags->scene, "glTF scene (.glb/.gltf)")->required()->check(CLI::ExistingFile);
   auto* trajectory =
       sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (loops if shorter than the capture)")
@@ -222,6 +293,10 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
   add_ideal_flag(*sub, flags->ideal);
+  sub->add_option("--rig", flags->rig,
+                  "a rig file (docs/rig.md): a capture per sensor in OUT/<name>/, each from its mounting on the "
+                  "vehicle that --trajectory or --pose moves, with its own profile, mode, seed and serial")
+      ->excludes("--profile");
   sub->callback([&run, flags, mode, udp_profile, columns] {
     flags->mode_given = mode->count() > 0;
     flags->udp_profile_given = udp_profile->count() > 0;
