@@ -207,7 +207,11 @@ int serve(const ServeFlags& flags) {
                        motion.waits_for_client ? motion.trajectory.get() : nullptr,
                        std::make_shared<const TimeBase>(TimeBase::from_host())};
   std::unique_ptr<PoseReceiver> receiver;
-  if (motion.live) receiver = std::make_unique<PoseReceiver>(io, *motion.live, pose_udp_endpoint(flags));
+  if (motion.live) {
+    // A multicast group is joined on --address's interface (0.0.0.0: the routing table's choice).
+    receiver = std::make_unique<PoseReceiver>(io, *motion.live, pose_udp_endpoint(flags),
+                                              asio::ip::make_address_v4(flags.address));
+  }
   std::vector<std::unique_ptr<VirtualSensor>> sensors;
   for (PlannedSensor& p : planned) {
     try {
@@ -280,7 +284,9 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_flag("--live-poses", flags->live_poses,
                 "poses arrive live: POST /lidartwin/v1/pose (and UDP with --pose-udp); docs/live-poses.md")
       ->excludes(trajectory);
-  sub->add_option("--pose-udp", flags->pose_udp, "[ADDR:]PORT: listen for UDP pose messages (implies --live-poses)")
+  sub->add_option("--pose-udp", flags->pose_udp,
+                  "[ADDR:]PORT: listen for UDP pose messages (implies --live-poses); a multicast ADDR "
+                  "(239.x.y.z) joins that group on --address's interface, so a rig's processes share one stream")
       ->excludes(trajectory);
   auto* pose_clock =
       sub->add_option("--pose-clock", flags->pose_clock, "the clock of pose times: sender, monotonic, realtime, tai")

@@ -17,16 +17,28 @@ constexpr int64_t kRejectionSummaryNs = 5'000'000'000;
 
 }  // namespace
 
-PoseReceiver::PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional<asio::ip::udp::endpoint> listen)
+PoseReceiver::PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional<asio::ip::udp::endpoint> listen,
+                           asio::ip::address_v4 interface)
     : io_(io), poses_(poses), watchdog_(io) {
   if (!listen) return;
   socket_.emplace(io);
+  const bool multicast = listen->address().is_multicast();
   asio::error_code error;
   socket_->open(listen->protocol(), error);
-  if (!error) socket_->bind(*listen, error);
-  if (error) {
-    throw InputError("--pose-udp " + listen->address().to_string() + ":" + std::to_string(listen->port()) +
-                     ": cannot listen for pose messages there: " + error.message());
+  // The sensors of a rig on one host each join the group on the same port.
+  if (!error && multicast) socket_->set_option(asio::socket_base::reuse_address(true), error);
+  if (!error) socket_->bind(*listen, error);  // bound to the group: only its datagrams arrive
+  const std::string where = "--pose-udp " + listen->address().to_string() + ":" + std::to_string(listen->port());
+  if (error) throw InputError(where + ": cannot listen for pose messages there: " + error.message());
+  if (multicast) {
+    socket_->set_option(asio::ip::multicast::join_group(listen->address().to_v4(), interface), error);
+    if (error) {
+      throw InputError(where + ": cannot join the multicast group on " +
+                       (interface.is_unspecified() ? std::string("the default interface") : interface.to_string()) +
+                       ": " + error.message() +
+                       " (is there a multicast route? e.g. ip route add 224.0.0.0/4 dev eth0)");
+    }
+    joined_ = interface.is_unspecified() ? "the default interface" : interface.to_string();
   }
 }
 
@@ -35,8 +47,9 @@ PoseReceiver::~PoseReceiver() = default;
 void PoseReceiver::start() {
   started_ns_ = host_steady_ns();
   if (socket_) {
-    spdlog::info("live poses: listening on udp {}:{} (clock {}, extrapolating up to {:.0f} ms, then {})",
-                 socket_->local_endpoint().address().to_string(), port(), to_string(poses_.options().clock),
+    spdlog::info("live poses: listening on udp {}:{}{} (clock {}, extrapolating up to {:.0f} ms, then {})",
+                 socket_->local_endpoint().address().to_string(), port(),
+                 joined_.empty() ? "" : ", the multicast group joined on " + joined_, to_string(poses_.options().clock),
                  poses_.options().max_extrapolation_s * 1e3, to_string(poses_.options().timeout));
     receive_next();
   }

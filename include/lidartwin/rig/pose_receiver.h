@@ -16,9 +16,13 @@ namespace lidartwin {
 
 class PoseReceiver {
  public:
-  // listen: where UDP pose messages arrive (none: HTTP only). Throws InputError naming the address
-  // if the socket cannot be bound. `poses` must outlive the receiver.
-  PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional<asio::ip::udp::endpoint> listen);
+  // listen: where UDP pose messages arrive (none: HTTP only). A multicast group address (239.x.y.z)
+  // joins the group on the interface with address `interface` (unspecified: the one the routing
+  // table picks), so that every process of a rig spread over machines hears one vehicle's poses;
+  // several processes on one host may listen to the same group and port. Throws InputError naming
+  // the address if the socket cannot be bound or the group joined. `poses` must outlive the receiver.
+  PoseReceiver(asio::io_context& io, LivePoses& poses, std::optional<asio::ip::udp::endpoint> listen,
+               asio::ip::address_v4 interface = asio::ip::address_v4::any());
   ~PoseReceiver();
   PoseReceiver(const PoseReceiver&) = delete;
   PoseReceiver& operator=(const PoseReceiver&) = delete;
@@ -38,6 +42,7 @@ class PoseReceiver {
   asio::io_context& io_;
   LivePoses& poses_;
   std::optional<asio::ip::udp::socket> socket_;
+  std::string joined_;  // the interface a multicast group was joined on (empty: not multicast)
   asio::ip::udp::endpoint sender_;
   std::array<uint8_t, 2048> buffer_{};
   asio::steady_timer watchdog_;

@@ -1,0 +1,165 @@
+// A rig spread over processes (issue 26): two `serve` daemons, each one sensor of the rig at its
+// own address and mounting, join one multicast group for the vehicle's poses (--pose-udp
+// 239.x.y.z:PORT) and stamp on one clock. One sender drives both. Their ground truth (serve
+// --record's column_poses.tum) then shows that columns with equal timestamps observe the same
+// vehicle pose. (Across machines the same holds with the hosts' clocks disciplined by PTP; here
+// the daemons share the host's.)
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "e2e/support/daemon.h"
+#include "e2e/support/pose_sender.h"
+#include "e2e/support/room.h"
+#include "lidartwin/pose/pose.h"
+
+namespace lidartwin::e2e {
+namespace {
+
+namespace fs = std::filesystem;
+
+int64_t monotonic_ns() {
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  return int64_t{now.tv_sec} * 1'000'000'000 + now.tv_nsec;
+}
+
+// The vehicle: 1 m/s along x while turning at 30 deg/s, 1.5 m up, in the room.
+RigPose vehicle_at(int64_t t0_ns, int64_t time_ns, uint32_t sequence) {
+  const double t = static_cast<double>(time_ns - t0_ns) * 1e-9;
+  RigPose pose;
+  pose.sequence = sequence;
+  pose.time_ns = time_ns;
+  pose.position = {-0.5 + 1.0 * t, 0.0, 1.5};
+  pose.orientation = Eigen::AngleAxisd(0.5236 * t, Eigen::Vector3d::UnitZ());
+  return pose;
+}
+
+// Sends to the group from the loopback interface (where the daemons joined it), at 200 Hz.
+void send_poses(const std::string& group, uint16_t port, int64_t t0_ns, std::chrono::milliseconds duration) {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  in_addr loopback{};
+  inet_pton(AF_INET, "127.0.0.1", &loopback);
+  setsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &loopback, sizeof loopback);
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(port);
+  inet_pton(AF_INET, group.c_str(), &to.sin_addr);
+  const auto end = std::chrono::steady_clock::now() + duration;
+  for (uint32_t sequence = 0; std::chrono::steady_clock::now() < end; ++sequence) {
+    const std::vector<uint8_t> bytes = pose_datagram(vehicle_at(t0_ns, monotonic_ns(), sequence));
+    sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  close(fd);
+}
+
+std::vector<StampedPose> read_tum(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<StampedPose> poses;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    StampedPose p;
+    fields >> p.time_s;
+    std::string rest;
+    std::getline(fields, rest);
+    p.pose = parse_pose(rest);
+    poses.push_back(p);
+  }
+  return poses;
+}
+
+Pose inverse(const Pose& p) {
+  const Eigen::Quaterniond r = p.rotation.conjugate();
+  return {r, -(r * p.translation)};
+}
+
+constexpr const char* kMountA = "0.5 0.4 0.3 0 0 0.3826834 0.9238795";  // 45 deg left
+constexpr const char* kMountB = "-0.5 -0.4 0.2 0 0 -0.3826834 0.9238795";
+
+TEST(MulticastPoses, TwoDaemonsOfARigHearOneVehicleAndAgreeOnItsPoseAtEveryTimestamp) {
+  const std::string group = "239.255.77.77";
+  const auto port = static_cast<uint16_t>(20000 + getpid() % 30000);
+  const std::string listen = group + ":" + std::to_string(port);
+  const fs::path dir = scratch_dir() / "multicast_rig";
+  fs::remove_all(dir);
+  const auto daemon_args = [&](const char* mount, const std::string& name) {
+    return std::vector<std::string>{"--profile",  "os1-32", "--scene",      empty_room_scene().string(),
+                                    "--threads",  "1",      "--lidar-mode", "512x10",
+                                    "--pose-udp", listen,   "--pose-clock", "monotonic",
+                                    "--mount",    mount,    "--record",     (dir / name).string()};
+  };
+  Daemon a("127.0.0.2", 0, daemon_args(kMountA, "a"));
+  Daemon b("127.0.0.3", 0, daemon_args(kMountB, "b"));
+  EXPECT_NE(a.log().find("multicast group joined on 127.0.0.2"), std::string::npos) << a.log();
+  const int64_t t0 = monotonic_ns();
+  send_poses(group, port, t0, std::chrono::milliseconds(1500));
+  const int64_t t1 = monotonic_ns();
+  EXPECT_EQ(a.stop(), 0) << a.log();
+  EXPECT_EQ(b.stop(), 0) << b.log();
+
+  // The vehicle as each daemon placed it: each column's sensor pose less its mounting.
+  const auto vehicle = [](const fs::path& file, const char* mount) {
+    std::vector<StampedPose> poses = read_tum(file);
+    const Pose sensor_from_vehicle = inverse(parse_pose(mount));
+    for (StampedPose& p : poses) p.pose = p.pose * sensor_from_vehicle;
+    return poses;
+  };
+  const std::vector<StampedPose> from_a = vehicle(dir / "a" / "column_poses.tum", kMountA);
+  const std::vector<StampedPose> from_b = vehicle(dir / "b" / "column_poses.tum", kMountB);
+  // While poses arrived (not before the first nor past the last, where a daemon holds or
+  // extrapolates), each of b's columns against a's pose at the same time, between a's two columns.
+  const double begin_s = static_cast<double>(t0) * 1e-9 + 0.1, end_s = static_cast<double>(t1) * 1e-9 - 0.05;
+  size_t compared = 0;
+  double worst_m = 0.0, worst_rad = 0.0, worst_truth_m = 0.0;
+  size_t k = 0;
+  for (const StampedPose& pb : from_b) {
+    if (pb.time_s < begin_s || pb.time_s > end_s) continue;
+    while (k + 1 < from_a.size() && from_a[k + 1].time_s < pb.time_s) ++k;
+    if (k + 1 >= from_a.size() || from_a[k].time_s > pb.time_s) continue;
+    const StampedPose& p0 = from_a[k];
+    const StampedPose& p1 = from_a[k + 1];
+    if (p1.time_s - p0.time_s > 0.001) continue;  // a gap in a's columns (between frames)
+    const double w = (pb.time_s - p0.time_s) / (p1.time_s - p0.time_s);
+    const Eigen::Vector3d position = (1 - w) * p0.pose.translation + w * p1.pose.translation;
+    const Eigen::Quaterniond rotation = p0.pose.rotation.slerp(w, p1.pose.rotation);
+    worst_m = std::max(worst_m, (pb.pose.translation - position).norm());
+    worst_rad = std::max(worst_rad, pb.pose.rotation.angularDistance(rotation));
+    const RigPose truth = vehicle_at(t0, static_cast<int64_t>(pb.time_s * 1e9), 0);
+    worst_truth_m = std::max(worst_truth_m, (pb.pose.translation - truth.position).norm());
+    ++compared;
+  }
+  std::printf("compared %zu columns: vehicle pose apart by at most %.2e m, %.2e rad; %.2e m from the sent motion\n",
+              compared, worst_m, worst_rad, worst_truth_m);
+  EXPECT_GT(compared, 1000u);
+  EXPECT_LT(worst_m, 1e-4);
+  EXPECT_LT(worst_rad, 1e-4);
+  EXPECT_LT(worst_truth_m, 2e-3);  // both heard the sender: the pose it sent for that time
+}
+
+// A group that cannot be joined (no interface has --address) is refused, naming the flag, the
+// group and the interface.
+TEST(MulticastPoses, AGroupThatCannotBeJoinedIsRefusedNamingIt) {
+  const auto [code, output] = run_cli("serve --http-port 0 --address 10.254.254.254 --profile os1-32 --scene " +
+                                      empty_room_scene().string() + " --pose-udp 239.255.77.78:0");
+  EXPECT_EQ(code, 2) << output;
+  EXPECT_NE(output.find("--pose-udp 239.255.77.78:0: cannot join the multicast group on 10.254.254.254"),
+            std::string::npos)
+      << output;
+}
+
+}  // namespace
+}  // namespace lidartwin::e2e
