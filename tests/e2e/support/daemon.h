@@ -101,6 +101,11 @@ class Daemon {
 
  private:
   void spawn(const std::vector<std::string>& argv) {
+    // Emptied here, before the child exists: the scratch directory is named by the test's pid, pids
+    // wrap at 32768 on the CI machines, and a log left by an earlier run's test of the same pid
+    // would otherwise be read before the child truncates it, its stale "answering on" line giving a
+    // port nobody listens on (the occasional "GET ...: transport error (Connection)" at start-up).
+    std::ofstream(log_path_, std::ios::trunc).close();
     pid_ = fork();
     if (pid_ < 0) throw std::runtime_error("fork failed");
     if (pid_ == 0) {
