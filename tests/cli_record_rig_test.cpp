@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -15,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/pose/pose.h"
+#include "support/pose_inverse.h"
 
 namespace lidartwin {
 namespace {
@@ -25,27 +25,6 @@ const std::string kSource = LIDARTWIN_SOURCE_DIR;
 
 int run(const std::string& args) {
   return std::system((std::string(LIDARTWIN_BINARY) + " " + args + " >/dev/null 2>&1").c_str());
-}
-
-std::vector<StampedPose> read_tum(const fs::path& path) {
-  std::ifstream in(path);
-  std::vector<StampedPose> poses;
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream fields(line);
-    StampedPose p;
-    fields >> p.time_s;
-    std::string rest;
-    std::getline(fields, rest);
-    p.pose = parse_pose(rest);
-    poses.push_back(p);
-  }
-  return poses;
-}
-
-Pose inverse(const Pose& p) {
-  const Eigen::Quaterniond r = p.rotation.conjugate();
-  return {r, -(r * p.translation)};
 }
 
 TEST(RecordRig, EachSensorIsRecordedFromItsMountingOnOneTimeBase) {
@@ -62,7 +41,7 @@ TEST(RecordRig, EachSensorIsRecordedFromItsMountingOnOneTimeBase) {
   };
   const nlohmann::json& roof_entry = rig["sensors"][0];
   ASSERT_EQ(roof_entry["name"], "roof");
-  const std::vector<StampedPose> roof = read_tum(out / "roof" / "column_poses.tum");
+  const std::vector<StampedPose> roof = Trajectory::load_tum(out / "roof" / "column_poses.tum").samples();
   ASSERT_EQ(roof.size(), 2u * 1024u);
   const Pose vehicle_from_roof = mount_of(roof_entry);
   std::set<std::string> serials;
@@ -73,9 +52,9 @@ TEST(RecordRig, EachSensorIsRecordedFromItsMountingOnOneTimeBase) {
     const nlohmann::json metadata = nlohmann::json::parse(std::ifstream(dir / "metadata.json"));
     serials.insert(metadata["sensor_info"]["prod_sn"].get<std::string>());
     init_ids.insert(metadata["sensor_info"]["initialization_id"].get<uint32_t>());
-    const std::vector<StampedPose> own = read_tum(dir / "column_poses.tum");
+    const std::vector<StampedPose> own = Trajectory::load_tum(dir / "column_poses.tum").samples();
     ASSERT_EQ(own.size(), roof.size()) << dir;
-    const Pose roof_from_sensor = inverse(vehicle_from_roof) * mount_of(entry);
+    const Pose roof_from_sensor = test::inverse(vehicle_from_roof) * mount_of(entry);
     double worst_m = 0.0, worst_rad = 0.0;
     for (size_t i = 0; i < own.size(); ++i) {
       ASSERT_EQ(own[i].time_s, roof[i].time_s) << dir << " column " << i;  // one time base

@@ -12,8 +12,6 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -24,6 +22,7 @@
 #include "e2e/support/pose_sender.h"
 #include "e2e/support/room.h"
 #include "lidartwin/pose/pose.h"
+#include "support/pose_inverse.h"
 
 namespace lidartwin::e2e {
 namespace {
@@ -66,27 +65,6 @@ void send_poses(const std::string& group, uint16_t port, int64_t t0_ns, std::chr
   close(fd);
 }
 
-std::vector<StampedPose> read_tum(const fs::path& path) {
-  std::ifstream in(path);
-  std::vector<StampedPose> poses;
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream fields(line);
-    StampedPose p;
-    fields >> p.time_s;
-    std::string rest;
-    std::getline(fields, rest);
-    p.pose = parse_pose(rest);
-    poses.push_back(p);
-  }
-  return poses;
-}
-
-Pose inverse(const Pose& p) {
-  const Eigen::Quaterniond r = p.rotation.conjugate();
-  return {r, -(r * p.translation)};
-}
-
 constexpr const char* kMountA = "0.5 0.4 0.3 0 0 0.3826834 0.9238795";  // 45 deg left
 constexpr const char* kMountB = "-0.5 -0.4 0.2 0 0 -0.3826834 0.9238795";
 
@@ -113,8 +91,8 @@ TEST(MulticastPoses, TwoDaemonsOfARigHearOneVehicleAndAgreeOnItsPoseAtEveryTimes
 
   // The vehicle as each daemon placed it: each column's sensor pose less its mounting.
   const auto vehicle = [](const fs::path& file, const char* mount) {
-    std::vector<StampedPose> poses = read_tum(file);
-    const Pose sensor_from_vehicle = inverse(parse_pose(mount));
+    std::vector<StampedPose> poses = Trajectory::load_tum(file).samples();
+    const Pose sensor_from_vehicle = test::inverse(parse_pose(mount));
     for (StampedPose& p : poses) p.pose = p.pose * sensor_from_vehicle;
     return poses;
   };
