@@ -6,12 +6,14 @@
 // the daemons share the host's.)
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <sched.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -46,12 +48,13 @@ RigPose vehicle_at(int64_t t0_ns, int64_t time_ns, uint32_t sequence) {
   return pose;
 }
 
-// Sends to the group from the loopback interface (where the daemons joined it), at 200 Hz.
-void send_poses(const std::string& group, uint16_t port, int64_t t0_ns, std::chrono::milliseconds duration) {
+// Sends to the group from the interface that has `from` (where the daemons joined it), at 200 Hz.
+void send_poses(const std::string& from, const std::string& group, uint16_t port, int64_t t0_ns,
+                std::chrono::milliseconds duration) {
   const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  in_addr loopback{};
-  inet_pton(AF_INET, "127.0.0.1", &loopback);
-  setsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &loopback, sizeof loopback);
+  in_addr interface {};
+  inet_pton(AF_INET, from.c_str(), &interface);
+  setsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &interface, sizeof interface);
   sockaddr_in to{};
   to.sin_family = AF_INET;
   to.sin_port = htons(port);
@@ -68,23 +71,27 @@ void send_poses(const std::string& group, uint16_t port, int64_t t0_ns, std::chr
 constexpr const char* kMountA = "0.5 0.4 0.3 0 0 0.3826834 0.9238795";  // 45 deg left
 constexpr const char* kMountB = "-0.5 -0.4 0.2 0 0 -0.3826834 0.9238795";
 
-TEST(MulticastPoses, TwoDaemonsOfARigHearOneVehicleAndAgreeOnItsPoseAtEveryTimestamp) {
-  const std::string group = "239.255.77.77";
-  const auto port = static_cast<uint16_t>(20000 + getpid() % 30000);
-  const std::string listen = group + ":" + std::to_string(port);
-  const fs::path dir = scratch_dir() / "multicast_rig";
-  fs::remove_all(dir);
-  const auto daemon_args = [&](const char* mount, const std::string& name) {
-    return std::vector<std::string>{"--profile",  "os1-32", "--scene",      empty_room_scene().string(),
-                                    "--threads",  "1",      "--lidar-mode", "512x10",
-                                    "--pose-udp", listen,   "--pose-clock", "monotonic",
-                                    "--mount",    mount,    "--record",     (dir / name).string()};
-  };
-  Daemon a("127.0.0.2", 0, daemon_args(kMountA, "a"));
-  Daemon b("127.0.0.3", 0, daemon_args(kMountB, "b"));
-  EXPECT_NE(a.log().find("multicast group joined on 127.0.0.2"), std::string::npos) << a.log();
+std::string pose_group_port() { return "239.255.77.77:" + std::to_string(20000 + getpid() % 30000); }
+
+std::vector<std::string> daemon_args(const std::string& listen, const char* mount, const fs::path& record) {
+  return {"--profile",  "os1-32", "--scene",      empty_room_scene().string(),
+          "--threads",  "1",      "--lidar-mode", "512x10",
+          "--pose-udp", listen,   "--pose-clock", "monotonic",
+          "--mount",    mount,    "--record",     record.string()};
+}
+
+// Sends the vehicle's motion to the group for 1.5 s from `from`'s interface, while daemons `a` and
+// `b` (mountings kMountA, kMountB) record into dir/a and dir/b; then stops them and checks, from
+// their ground truth (column_poses.tum), that columns with equal timestamps observe one vehicle pose,
+// the one that was sent.
+void expect_one_vehicle(Daemon& a, Daemon& b, const std::string& from, const fs::path& dir) {
+  const std::string listen = pose_group_port();
+  const std::string group = listen.substr(0, listen.find(':'));
+  const auto port = static_cast<uint16_t>(std::stoi(listen.substr(listen.find(':') + 1)));
+  EXPECT_NE(a.log().find("multicast group joined on " + a.address()), std::string::npos) << a.log();
+  EXPECT_NE(b.log().find("multicast group joined on " + b.address()), std::string::npos) << b.log();
   const int64_t t0 = monotonic_ns();
-  send_poses(group, port, t0, std::chrono::milliseconds(1500));
+  send_poses(from, group, port, t0, std::chrono::milliseconds(1500));
   const int64_t t1 = monotonic_ns();
   EXPECT_EQ(a.stop(), 0) << a.log();
   EXPECT_EQ(b.stop(), 0) << b.log();
@@ -126,6 +133,66 @@ TEST(MulticastPoses, TwoDaemonsOfARigHearOneVehicleAndAgreeOnItsPoseAtEveryTimes
   EXPECT_LT(worst_m, 1e-4);
   EXPECT_LT(worst_rad, 1e-4);
   EXPECT_LT(worst_truth_m, 2e-3);  // both heard the sender: the pose it sent for that time
+}
+
+TEST(MulticastPoses, TwoDaemonsOfARigHearOneVehicleAndAgreeOnItsPoseAtEveryTimestamp) {
+  const fs::path dir = scratch_dir() / "multicast_rig";
+  fs::remove_all(dir);
+  Daemon a("127.0.0.2", 0, daemon_args(pose_group_port(), kMountA, dir / "a"));
+  Daemon b("127.0.0.3", 0, daemon_args(pose_group_port(), kMountB, dir / "b"));
+  expect_one_vehicle(a, b, "127.0.0.1", dir);
+}
+
+// Two machines of a rig on one LAN, as two pods of a cluster: each daemon in a network namespace
+// of its own, with one interface on a Linux bridge (veth pairs); the pose sender on the bridge
+// itself, in this test's own namespace. Nothing but the bridge joins them.
+class BridgedHosts {
+ public:
+  BridgedHosts() {
+    if (unshare(CLONE_NEWNET) != 0) throw std::runtime_error("unshare(CLONE_NEWNET) failed");
+    ip("link set lo up");
+    // Snooping off: the bridge floods the group to every port, whatever IGMP it has seen.
+    ip("link add lt-br type bridge mcast_snooping 0");
+    ip("addr add 10.77.0.1/24 dev lt-br");
+    ip("link set lt-br up");
+    for (size_t k = 0; k < 2; ++k) {
+      const std::string ns = namespaces_[k], port = "lt-port" + std::to_string(k), nic = "lt-nic" + std::to_string(k);
+      ip("netns add " + ns);
+      ip("link add " + nic + " type veth peer name " + port);
+      ip("link set " + nic + " netns " + ns);
+      ip("link set " + port + " master lt-br up");
+      ip("-n " + ns + " link set lo up");
+      ip("-n " + ns + " addr add " + address(k) + "/24 dev " + nic);
+      ip("-n " + ns + " link set " + nic + " up");
+    }
+  }
+  ~BridgedHosts() {
+    for (const std::string& ns : namespaces_) std::system(("ip netns del " + ns + " 2>/dev/null").c_str());
+  }
+  BridgedHosts(const BridgedHosts&) = delete;
+  BridgedHosts& operator=(const BridgedHosts&) = delete;
+
+  const std::string& netns(size_t k) const { return namespaces_[k]; }
+  static std::string address(size_t k) { return "10.77.0." + std::to_string(2 + k); }
+  static std::string bridge_address() { return "10.77.0.1"; }
+
+ private:
+  static void ip(const std::string& args) {
+    if (std::system(("ip " + args + " 2>&1").c_str()) != 0) throw std::runtime_error("ip " + args + " failed");
+  }
+  const std::string namespaces_[2] = {"lt-rig-a-" + std::to_string(getpid()), "lt-rig-b-" + std::to_string(getpid())};
+};
+
+TEST(MulticastPoses, TwoDaemonsInTwoNetworkNamespacesOnABridgeAgreeOnTheVehiclesPose) {
+  if (!running_as_root()) GTEST_SKIP() << "network namespaces need root";
+  const BridgedHosts hosts;
+  const fs::path dir = scratch_dir() / "bridged_rig";
+  fs::remove_all(dir);
+  Daemon a(Daemon::Netns{hosts.netns(0)}, BridgedHosts::address(0), 0,
+           daemon_args(pose_group_port(), kMountA, dir / "a"));
+  Daemon b(Daemon::Netns{hosts.netns(1)}, BridgedHosts::address(1), 0,
+           daemon_args(pose_group_port(), kMountB, dir / "b"));
+  expect_one_vehicle(a, b, BridgedHosts::bridge_address(), dir);
 }
 
 // A group that cannot be joined (no interface has --address) is refused, naming the flag, the

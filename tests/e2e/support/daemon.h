@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <fcntl.h>
+#include <sched.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -55,6 +56,22 @@ class Daemon {
     static int counter = 0;
     log_path_ = scratch_dir() / ("rig-" + address_ + "-" + std::to_string(++counter) + ".log");
     std::vector<std::string> argv{LIDARTWIN_BINARY, "serve"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    spawn(argv);
+    wait_until_ready(timeout);
+  }
+  // Starts the daemon inside the named network namespace (`ip netns add NAME`; needs root), as on a
+  // machine of its own.
+  struct Netns {
+    std::string name;
+  };
+  Daemon(Netns netns, std::string address, int http_port, const std::vector<std::string>& args,
+         std::chrono::seconds timeout = std::chrono::seconds(30))
+      : address_(std::move(address)), netns_("/var/run/netns/" + netns.name) {
+    static int counter = 0;
+    log_path_ = scratch_dir() / ("daemon-" + netns.name + "-" + address_ + "-" + std::to_string(++counter) + ".log");
+    std::vector<std::string> argv{LIDARTWIN_BINARY, "serve",       "--address",
+                                  address_,         "--http-port", std::to_string(http_port)};
     argv.insert(argv.end(), args.begin(), args.end());
     spawn(argv);
     wait_until_ready(timeout);
@@ -112,6 +129,13 @@ class Daemon {
       const int fd = open(log_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       dup2(fd, STDOUT_FILENO);
       dup2(fd, STDERR_FILENO);
+      if (!netns_.empty()) {
+        const int ns = open(netns_.c_str(), O_RDONLY | O_CLOEXEC);
+        if (ns < 0 || setns(ns, CLONE_NEWNET) != 0) {
+          perror(("setns " + netns_).c_str());
+          _exit(126);
+        }
+      }
       std::vector<char*> raw;
       for (const auto& arg : argv) raw.push_back(const_cast<char*>(arg.c_str()));
       raw.push_back(nullptr);
@@ -141,6 +165,7 @@ class Daemon {
   std::string address_;
   std::string ready_prefix_ = "answering on http://";
   std::filesystem::path log_path_;
+  std::string netns_;  // a network namespace's file; empty: the test's own
   pid_t pid_ = -1;
   int http_port_ = 0;
   int exit_code_ = 0;
