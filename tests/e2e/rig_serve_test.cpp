@@ -53,7 +53,7 @@ void connect(const Daemon& daemon, const std::string& address, Client& client, c
   client.metadata = parse(sdk10_sensor_packet_source(http, request));
 }
 
-TEST(RigServe, EachSensorOfTheExampleRigIsItsOwnSensorAndOnesReinitLeavesTheOthersStreaming) {
+TEST(RigServe, EachSensorIsItsOwnAndOnesReinitAnothersBadRequestAndStopLeaveTheThirdStreaming) {
   Daemon daemon(Daemon::Rig{}, kSensors.back().address, rig_args(kExampleRig));
   std::set<std::string> serials;
   for (const RigSensor& expected : kSensors) {
@@ -66,20 +66,26 @@ TEST(RigServe, EachSensorOfTheExampleRigIsItsOwnSensorAndOnesReinitLeavesTheOthe
   }
   EXPECT_EQ(serials.size(), kSensors.size()) << "each sensor has its own serial number";
 
-  // Two clients, each with its own sensor's packets, from that sensor's address.
-  Client roof, left;
+  // Three clients, each with its own sensor's packets, from that sensor's address.
+  Client roof, left, right;
   connect(daemon, "127.0.0.2", roof, "512x10");
   connect(daemon, "127.0.0.3", left, "512x10");
+  connect(daemon, "127.0.0.4", right, "512x10");
   ScanBatcher roof_batcher(roof.metadata.format);
   expect_complete_scans(receive_scans(roof.lidar, roof_batcher, 3, std::chrono::seconds(15), "127.0.0.2"),
                         roof.metadata, 3);
   ScanBatcher left_batcher(left.metadata.format);
   expect_complete_scans(receive_scans(left.lidar, left_batcher, 3, std::chrono::seconds(15), "127.0.0.3"),
                         left.metadata, 3);
+  ScanBatcher right_batcher(right.metadata.format);
+  expect_complete_scans(receive_scans(right.lidar, right_batcher, 3, std::chrono::seconds(15), "127.0.0.4"),
+                        right.metadata, 3);
 
-  // The left sensor is reconfigured (a new mode: a reinit, a new init_id) while the roof's client
-  // keeps receiving: its scans stay complete, consecutive and of the same session throughout.
-  std::thread reinit([&] {
+  // While the roof's client receives 11 scans: the left sensor is reconfigured (a new mode: a reinit,
+  // a new init_id); the right one gets a bad request, which it refuses, and is then stopped the way
+  // a client stops a sensor (operating_mode STANDBY). The roof's scans stay complete, consecutive
+  // and of one session throughout; the left streams its new mode; the right falls silent.
+  std::thread others([&] {
     std::this_thread::sleep_for(std::chrono::milliseconds(150));
     Client again;
     connect(daemon, "127.0.0.3", again, "1024x10");
@@ -87,10 +93,25 @@ TEST(RigServe, EachSensorOfTheExampleRigIsItsOwnSensorAndOnesReinitLeavesTheOthe
     ScanBatcher batcher(again.metadata.format);
     expect_complete_scans(receive_scans(again.lidar, batcher, 2, std::chrono::seconds(15), "127.0.0.3"), again.metadata,
                           2);
+
+    SensorHttp right_http("127.0.0.4", daemon.port_of("127.0.0.4"));
+    const httplib::Result bad = right_http.raw_post("/api/v1/sensor/config", R"({"lidar_mode": "4096x5"})");
+    ASSERT_TRUE(bad);
+    EXPECT_EQ(bad->status, 400) << bad->body;
+    right_http.post("sensor/config?staging=true&reinit=true&persist=false", {{"operating_mode", "STANDBY"}});
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // a packet already on its way
+    right.lidar.drain();
+    EXPECT_FALSE(right.lidar.receive(std::chrono::milliseconds(500))) << "a sensor in STANDBY sends nothing";
   });
-  expect_complete_scans(receive_scans(roof.lidar, roof_batcher, 8, std::chrono::seconds(20), "127.0.0.2"),
-                        roof.metadata, 8);
-  reinit.join();
+  std::vector<BatchedFrame> roof_scans =
+      receive_scans(roof.lidar, roof_batcher, 8, std::chrono::seconds(20), "127.0.0.2");
+  others.join();
+  // and on past the right sensor's stop, the same stream: no gap at the join
+  for (BatchedFrame& scan :
+       receive_scans(roof.lidar, roof_batcher, 3, std::chrono::seconds(15), "127.0.0.2", /*joined_mid_frame=*/false)) {
+    roof_scans.push_back(std::move(scan));
+  }
+  expect_complete_scans(roof_scans, roof.metadata, 11);
   EXPECT_EQ(daemon.stop(), 0) << daemon.log();
 }
 

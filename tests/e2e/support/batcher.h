@@ -18,12 +18,15 @@
 
 namespace lidartwin::e2e {
 
-// Receives until `count` scans were released (the first, possibly partial one, is skipped) or the
-// timeout passes. Checks the source address of every datagram when `source` is given.
+// Receives until `count` scans were released or the timeout passes. The first scan released is
+// skipped (the socket may have joined mid-frame) unless `joined_mid_frame` is false: the batcher
+// then goes on with a stream the caller has been reading. Checks the source address of every datagram when `source` is
+// given.
 inline std::vector<BatchedFrame> receive_scans(UdpSocket& socket, ScanBatcher& batcher, size_t count,
-                                               std::chrono::seconds timeout, const std::string& source = "") {
+                                               std::chrono::seconds timeout, const std::string& source = "",
+                                               bool joined_mid_frame = true) {
   std::vector<BatchedFrame> scans;
-  bool first = true;
+  bool first = joined_mid_frame;
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (scans.size() < count && std::chrono::steady_clock::now() < deadline) {
     auto datagram = socket.receive(std::chrono::milliseconds(1000));
