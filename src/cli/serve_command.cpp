@@ -165,7 +165,7 @@ std::vector<PlannedSensor> plan_sensors(const ServeFlags& flags, int render_nice
     try {
       SensorChoice choice = load_sensor(entry.flags.profile);
       VirtualSensorSetup setup = sensor_setup(entry.flags, choice, parse_address(entry.flags.address), render_nice);
-      setup.streamer.name = entry.name;
+      setup.name = entry.name;
       planned.push_back({std::move(entry), std::move(choice), std::move(setup), context});
     } catch (const InputError& e) {
       throw InputError(context + e.what());

@@ -6,6 +6,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "lidartwin/log_tag.h"
+
 namespace lidartwin {
 
 using nlohmann::json;
@@ -17,13 +19,15 @@ int64_t monotonic_ns() {
 }
 }  // namespace
 
-FaultControl::FaultControl(FaultPlan plan) { set(std::move(plan)); }
+FaultControl::FaultControl(FaultPlan plan, std::string sensor_name) : tag_(log_tag(sensor_name)) {
+  set(std::move(plan));
+}
 
 void FaultControl::set(FaultPlan plan) {
   if (plan.empty()) {
-    spdlog::info("faults: none");
+    spdlog::info("faults{}: none", tag_);
   } else {
-    spdlog::info("faults: {} (replay with --fault \"{}\")", to_json(plan).dump(), to_spec(plan));
+    spdlog::info("faults{}: {} (replay with --fault \"{}\")", tag_, to_json(plan).dump(), to_spec(plan));
   }
   std::lock_guard lock(mutex_);
   plan_ = std::move(plan);
@@ -41,9 +45,9 @@ uint64_t FaultControl::generation() const { return generation_.load(std::memory_
 void FaultControl::record(std::string_view kind, json detail) {
   const bool sensor_event = kind == "reset" || kind == "standby" || kind == "error" || kind == "recovered";
   if (sensor_event) {
-    spdlog::warn("faults: {} {}", kind, detail.dump());
+    spdlog::warn("faults{}: {} {}", tag_, kind, detail.dump());
   } else if (spdlog::should_log(spdlog::level::debug)) {  // packet faults: not printed unless asked for
-    spdlog::debug("faults: {} {}", kind, detail.dump());
+    spdlog::debug("faults{}: {} {}", tag_, kind, detail.dump());
   }
   std::lock_guard lock(mutex_);
   ++counts_[std::string(kind)];

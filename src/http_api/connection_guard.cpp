@@ -122,9 +122,9 @@ void ConnectionGuard::watch() {
     }
     if (counts_.refused > logged_refused_ || counts_.cut > logged_cut_) {
       spdlog::warn(
-          "HTTP: {} connections refused (over {} from one address) and {} cut (no request completed in {} "
+          "HTTP{}: {} connections refused (over {} from one address) and {} cut (no request completed in {} "
           "s) since the last report; {} open",
-          counts_.refused - logged_refused_, options_.max_per_peer, counts_.cut - logged_cut_,
+          options_.log_tag, counts_.refused - logged_refused_, options_.max_per_peer, counts_.cut - logged_cut_,
           std::chrono::duration<double>(options_.request_deadline).count(), connections_.size());
       logged_refused_ = counts_.refused;
       logged_cut_ = counts_.cut;

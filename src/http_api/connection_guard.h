@@ -22,6 +22,7 @@ class ConnectionGuard {
   struct Options {
     std::size_t max_per_peer = 64;
     std::chrono::milliseconds request_deadline{10'000};
+    std::string log_tag = {};  // after "HTTP" in its reports (log_tag.h)
   };
   explicit ConnectionGuard(Options options);
   ~ConnectionGuard();  // stops the watchdog

@@ -19,6 +19,7 @@
 #include "http_api/connection_threads.h"
 #include "lidartwin/fault/fault_schedule.h"
 #include "lidartwin/http_api/request_handler.h"
+#include "lidartwin/log_tag.h"
 
 namespace lidartwin {
 namespace {
@@ -97,7 +98,7 @@ extern "C" bool lidartwin_httplib_serve_connection(httplib::Server* server,
 
 class GuardedServer : public httplib::Server {
  public:
-  explicit GuardedServer(ConnectionGuard::Options options) : guard_(options) {}
+  explicit GuardedServer(ConnectionGuard::Options options) : guard_(std::move(options)) {}
 
  private:
   bool process_and_close_socket(socket_t sock) override {
@@ -120,7 +121,7 @@ class GuardedServer : public httplib::Server {
 
 struct HttpServer::Impl {
   Impl(Sensor& sensor, HttpServerOptions server_options)
-      : options(std::move(server_options)), handler(sensor, options.lidartwin_api) {}
+      : options(std::move(server_options)), handler(sensor, options.lidartwin_api, log_tag(options.name)) {}
 
   void configure();
   void configure_connections();
@@ -130,7 +131,8 @@ struct HttpServer::Impl {
 
   HttpServerOptions options;
   RequestHandler handler;
-  http_detail::GuardedServer server{{options.max_connections_per_peer, options.request_deadline}};
+  http_detail::GuardedServer server{
+      {options.max_connections_per_peer, options.request_deadline, log_tag(options.name)}};
   std::thread thread;
   std::atomic<bool> listen_returned{false};
   int port = -1;
@@ -238,7 +240,7 @@ void HttpServer::start() {
   while (!impl.server.is_running() && !impl.listen_returned) {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
-  spdlog::info("HTTP API on http://{}:{}/api/v1/", address, impl.port);
+  spdlog::info("HTTP API{} on http://{}:{}/api/v1/", log_tag(impl.options.name), address, impl.port);
 }
 
 void HttpServer::stop() {

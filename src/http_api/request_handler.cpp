@@ -95,7 +95,7 @@ ApiResponse RequestHandler::handle(const ApiRequest& request) const {
     // A JSON type error that escaped validation: the input was wrong, not the server.
     return error_response(400, std::string("bad value: ") + e.what());
   } catch (const std::exception& e) {
-    spdlog::error("HTTP {} {}: {}", request.method, request.path, e.what());
+    spdlog::error("HTTP{} {} {}: {}", log_tag_, request.method, request.path, e.what());
     return error_response(500, std::string("internal error: ") + e.what());
   }
 }

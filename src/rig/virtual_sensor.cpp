@@ -9,6 +9,7 @@
 
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/json/json_reader.h"
+#include "lidartwin/log_tag.h"
 #include "lidartwin/rig/fault_api.h"
 #include "lidartwin/rig/pose_api.h"
 
@@ -19,6 +20,12 @@ HttpServerOptions with_extensions(HttpServerOptions http, VirtualSensor& sensor,
   http.lidartwin_api = [&sensor](const ApiRequest& request) { return sensor.lidartwin_endpoint(request); };
   http.faults = &faults;
   return http;
+}
+// A rig's sensor name, for the server's and the streamer's log lines.
+template <typename Options>
+Options named(Options options, const std::string& name) {
+  options.name = name;
+  return options;
 }
 StreamerOptions with_faults(StreamerOptions options, VirtualSensor& sensor, FaultControl& faults) {
   options.faults = &faults;
@@ -53,6 +60,7 @@ StreamerOptions with_pose_clock(StreamerOptions options, LivePoses* live, bool s
 
 VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
     : rig_(with_time_base(rig)),
+      log_tag_(log_tag(setup.name)),
       poses_(rig.poses, setup.mounting),
       per_column_poses_(setup.per_column_poses),
       lock_step_(setup.streamer.lock_step),
@@ -62,16 +70,17 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
       chain_(std::move(setup.chain)),
       seed_(setup.seed),
       frames_ahead_(setup.streamer.frames_ahead),
-      faults_(std::move(setup.faults)),
+      faults_(std::move(setup.faults), setup.name),
       fault_timer_(rig.io),
       sensor_(std::move(setup.identity), with_time(std::move(setup.sensor), rig_, *this)),
-      http_(sensor_, with_extensions(std::move(setup.http), *this, faults_)),
+      http_(sensor_, with_extensions(named(std::move(setup.http), setup.name), *this, faults_)),
       streamer_(
           rig.io,
           [this](const StreamConfig& config, int64_t start_steady_ns, uint64_t origin_ns) {
             return make_model(config, start_steady_ns, origin_ns);
           },
-          with_faults(with_pose_clock(with_time(std::move(setup.streamer), rig_), rig.live, setup.stamp_pose_clock),
+          with_faults(with_pose_clock(with_time(named(std::move(setup.streamer), setup.name), rig_), rig.live,
+                                      setup.stamp_pose_clock),
                       *this, faults_)) {}
 
 // lidartwin's own endpoints: faults always, live poses when they arrive live.
@@ -146,8 +155,8 @@ void VirtualSensor::on_session(double pose_origin_s, int fps) {
   }
   if (!rig_.waiting_motion || !start_motion_with_session_.exchange(false)) return;
   if (rig_.waiting_motion->start_at(pose_origin_s)) {
-    spdlog::info("serve: a client configured {}: the motion starts with frame 0 of its stream (pose time {:.3f} s)",
-                 sensor_.identity().prod_sn, pose_origin_s);
+    spdlog::info("serve{}: a client configured {}: the motion starts with frame 0 of its stream (pose time {:.3f} s)",
+                 log_tag_, sensor_.identity().prod_sn, pose_origin_s);
   }
 }
 
@@ -174,8 +183,8 @@ void VirtualSensor::on_client(ClientEvent event) {
   const double start_s = origin_s + frame / fps;
   if (rig_.waiting_motion->start_at(start_s)) {
     spdlog::info(
-        "serve: a client read {}'s metadata: the motion starts with frame {:.0f} of its stream (pose time {:.3f} s)",
-        sensor_.identity().prod_sn, frame, start_s);
+        "serve{}: a client read {}'s metadata: the motion starts with frame {:.0f} of its stream (pose time {:.3f} s)",
+        log_tag_, sensor_.identity().prod_sn, frame, start_s);
   }
 }
 

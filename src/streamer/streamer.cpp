@@ -5,6 +5,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "lidartwin/log_tag.h"
+
 #include "lidartwin/error.h"
 #include "lidartwin/metadata/metadata.h"
 #include "streamer/fault_injector.h"
@@ -54,7 +56,7 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
     : io_(io),
       make_model_(std::move(make_model)),
       options_(with_time_base(std::move(options))),
-      tag_(options_.name.empty() ? std::string() : " (" + options_.name + ")"),
+      tag_(log_tag(options_.name)),
       sender_(std::make_unique<streamer_detail::UdpSender>(io, options_.source_address, capture_path(options_))),
       faults_(std::make_unique<streamer_detail::FaultInjector>(io, *sender_, options_.faults,
                                                                [this](SensorFaultEvent event) {

@@ -63,20 +63,25 @@ std::optional<std::string> persisted_mode(const fs::path& file) {
   }
 }
 
-// SIGKILL at 30 points spread over a persisting config write (0 to 20 ms after the request is sent,
-// before, during and after the save): each time the file holds one of the two modes in full, and the
-// next daemon starts from it. The delays are visited out of order, so that a save that is slow to
-// land at first (a cold start) cannot make every later, longer delay fall after it.
+// SIGKILL at 30 points spread over a persisting config write (from 0 to twice the time one such
+// request takes on this machine, at least 20 ms: before, during and after the save): each time the
+// file holds one of the two modes in full, and the next daemon starts from it. The delays are
+// visited out of order, so that a save that is slow to land at first (a cold start) cannot make
+// every later, longer delay fall after it.
 TEST(Faults, ASigkillWhilePersistingLeavesTheOldOrTheNewStateNeverATornOne) {
   const fs::path state = scratch_dir() / ("state_" + std::to_string(getpid()) + ".json");
   fs::remove(state);
   const std::string modes[] = {"1024x10", "2048x10"};
-  {  // a first state file, saved without a kill
+  std::chrono::microseconds step_us{700};
+  {  // a first state file, saved without a kill: how long a persisting write takes here
     Daemon daemon("127.0.0.1", 0, with(room_args(), {"--state-file", state.string()}));
+    const auto start = std::chrono::steady_clock::now();
     SensorHttp(daemon.address(), daemon.http_port())
-        .post("sensor/config?staging=true&reinit=true&persist=true", {{"lidar_mode", modes[0]}});
+        .post("sensor/config?staging=true&reinit=true&persist=true", {{"lidar_mode", modes[1]}});
+    const auto took = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - start);
+    step_us = std::max(step_us, 2 * took / 30);
     ASSERT_EQ(daemon.stop(), 0);
-    ASSERT_EQ(persisted_mode(state), modes[0]);
+    ASSERT_EQ(persisted_mode(state), modes[1]);
   }
   std::set<std::string> seen;
   for (int step = 0; step < 30; ++step) {
@@ -95,17 +100,19 @@ TEST(Faults, ASigkillWhilePersistingLeavesTheOldOrTheNewStateNeverATornOne) {
       } catch (const std::exception&) {  // killed before it answered
       }
     });
-    std::this_thread::sleep_for(std::chrono::microseconds(700 * attempt));
+    std::this_thread::sleep_for(step_us * attempt);
     kill(daemon.pid(), SIGKILL);
     writer.join();
     EXPECT_EQ(daemon.stop(), 128 + SIGKILL);
     if (!fs::exists(state)) continue;  // killed before the first save
     const std::optional<std::string> mode = persisted_mode(state);
-    ASSERT_TRUE(mode.has_value()) << "a kill " << 700 * attempt << " us after the request: a torn state file";
+    ASSERT_TRUE(mode.has_value()) << "a kill " << (step_us * attempt).count()
+                                  << " us after the request: a torn state file";
     EXPECT_TRUE(*mode == active || *mode == next) << *mode;
     seen.insert(*mode == active ? "old" : "new");
   }
-  EXPECT_EQ(seen, (std::set<std::string>{"old", "new"})) << "the kills fell before and after the save";
+  EXPECT_EQ(seen, (std::set<std::string>{"old", "new"}))
+      << "the kills, " << step_us.count() << " us apart, fell before and after the save";
   fs::remove(state);
 }
 

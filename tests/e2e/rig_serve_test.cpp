@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "e2e/support/batcher.h"
@@ -106,6 +107,12 @@ TEST(RigServe, EachSensorIsItsOwnAndOnesReinitAnothersBadRequestAndStopLeaveTheT
   std::vector<BatchedFrame> roof_scans =
       receive_scans(roof.lidar, roof_batcher, 8, std::chrono::seconds(20), "127.0.0.2");
   others.join();
+  // One log for the rig: each sensor's lines name it.
+  for (const auto& [name, address] : {std::pair{"roof", "127.0.0.2"}, {"left", "127.0.0.3"}, {"right", "127.0.0.4"}}) {
+    EXPECT_NE(daemon.log().find(fmt::format("HTTP API ({}) on http://{}:", name, address)), std::string::npos);
+    EXPECT_NE(daemon.log().find(fmt::format("faults ({}): none", name)), std::string::npos);
+    EXPECT_NE(daemon.log().find(fmt::format("streamer ({}): lidar 512x10", name)), std::string::npos);
+  }
   // and on past the right sensor's stop, the same stream: no gap at the join
   for (BatchedFrame& scan :
        receive_scans(roof.lidar, roof_batcher, 3, std::chrono::seconds(15), "127.0.0.2", /*joined_mid_frame=*/false)) {

@@ -18,7 +18,8 @@ namespace lidartwin {
 
 class FaultControl {
  public:
-  explicit FaultControl(FaultPlan plan = {});
+  // `sensor_name`: a rig's sensor, named in the log lines ("faults (roof): ...").
+  explicit FaultControl(FaultPlan plan = {}, std::string sensor_name = {});
   FaultControl(const FaultControl&) = delete;
   FaultControl& operator=(const FaultControl&) = delete;
 
@@ -42,6 +43,7 @@ class FaultControl {
   static constexpr size_t kMaxEvents = 100'000;
 
  private:
+  const std::string tag_;  // log_tag.h
   mutable std::mutex mutex_;
   FaultPlan plan_;
   std::atomic<uint64_t> generation_{0};

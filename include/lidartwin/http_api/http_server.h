@@ -35,6 +35,8 @@ struct HttpServerOptions {
   // The plan's HTTP faults (http_500, http_delay_ms) for requests below /api/v1/; null: none. Must
   // outlive the server.
   FaultControl* faults = nullptr;
+  // A rig's sensor name: its log lines read "HTTP (roof): ..." (empty: a lone sensor's).
+  std::string name = {};
 };
 
 // start() could not bind. The message explains what to do (for ports below 1024 the remedies of

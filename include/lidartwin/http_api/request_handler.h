@@ -48,8 +48,9 @@ inline constexpr std::string_view kExtensionPrefix = "/lidartwin/v1/";
 
 class RequestHandler {
  public:
-  explicit RequestHandler(Sensor& sensor, ExtensionEndpoint extension = nullptr)
-      : sensor_(sensor), extension_(std::move(extension)) {}
+  // `log_tag` follows "HTTP" in the log line of an unexpected error (log_tag.h).
+  explicit RequestHandler(Sensor& sensor, ExtensionEndpoint extension = nullptr, std::string log_tag = {})
+      : sensor_(sensor), extension_(std::move(extension)), log_tag_(std::move(log_tag)) {}
 
   // Never throws: bad input becomes a 4xx naming the problem, anything unexpected a 500.
   ApiResponse handle(const ApiRequest& request) const;
@@ -57,6 +58,7 @@ class RequestHandler {
  private:
   Sensor& sensor_;
   ExtensionEndpoint extension_;
+  std::string log_tag_;
 };
 
 // "http://host:port/api/v1/x" -> "/api/v1/x"; origin-form paths are returned unchanged.

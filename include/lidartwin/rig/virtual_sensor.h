@@ -48,6 +48,7 @@ struct RigContext {
 
 // Who one sensor is and how it is reached.
 struct VirtualSensorSetup {
+  std::string name = {};         // a rig's sensor, named in its log lines (log_tag.h); empty: a lone sensor
   SensorIdentity identity;       // product, serial number and beams as served
   SensorOptions sensor;          // state file, config overrides
   HttpServerOptions http;        // its address and port
@@ -108,7 +109,8 @@ class VirtualSensor {
   };
 
   RigContext rig_;
-  MountedPoses poses_;  // the rig's motion carrying this sensor
+  std::string log_tag_;  // " (roof)" after "serve" in a rig's sensor's log lines
+  MountedPoses poses_;   // the rig's motion carrying this sensor
   bool per_column_poses_;
   bool lock_step_;
   ImuNoise imu_noise_;
