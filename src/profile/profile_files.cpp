@@ -33,9 +33,15 @@ nlohmann::json read_json(const std::filesystem::path& path) {
 
 }  // namespace
 
+// $LIDARTWIN_PROFILES, else profiles/ of $LIDARTWIN_SOURCE_DIR (where scenes and rigs are found
+// too, e.g. an installed copy), else of the source tree this binary was built from.
 std::filesystem::path profiles_dir() {
-  const char* overridden = std::getenv("LIDARTWIN_PROFILES");
-  if (overridden != nullptr && *overridden != '\0') return overridden;
+  if (const char* overridden = std::getenv("LIDARTWIN_PROFILES"); overridden != nullptr && *overridden != '\0') {
+    return overridden;
+  }
+  if (const char* source = std::getenv("LIDARTWIN_SOURCE_DIR"); source != nullptr && *source != '\0') {
+    return std::filesystem::path(source) / "profiles";
+  }
   return std::filesystem::path(LIDARTWIN_SOURCE_DIR) / "profiles";
 }
 

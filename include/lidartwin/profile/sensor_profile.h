@@ -46,7 +46,8 @@ SensorProfile load_profile(std::string_view name_or_path);
 // The file load_profile reads for a name or path (throws InputError like it for a missing name).
 std::filesystem::path profile_file(std::string_view name_or_path);
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source);
-std::filesystem::path profiles_dir();  // <source>/profiles, or $LIDARTWIN_PROFILES
+std::filesystem::path
+profiles_dir();  // $LIDARTWIN_PROFILES, else $LIDARTWIN_SOURCE_DIR/profiles, else <source>/profiles
 std::vector<std::string> available_profiles();
 // The datasheet's range-noise table (Table I) of a product line's family ("OS-1-32" -> OS-1): the
 // range_noise_piecewise effect of the first available profile of that family that has one (the

@@ -1,0 +1,197 @@
+// The image as users run it (issue 26), with podman: a container on a bridge network, healthy and
+// streaming to an unmodified client; the Kubernetes manifests of docker/kubernetes/ played with
+// `podman kube play`, every sensor reached. ctest label "container": tools/container-check builds
+// the image (localhost/lidartwin:latest, around this build's binary) and runs these; the default
+// test run leaves them out. Needs root and podman (tools/container-setup).
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "e2e/support/room.h"  // Eigen before httplib
+
+#include <gtest/gtest.h>
+
+#include "e2e/support/batcher.h"
+#include "e2e/support/pose_sender.h"
+#include "e2e/support/sdk_client.h"
+#include "e2e/support/udp_socket.h"
+
+namespace lidartwin::e2e {
+namespace {
+
+const std::string kSource = LIDARTWIN_SOURCE_DIR;
+const std::string kImage = "localhost/lidartwin:latest";
+const std::string kPodman = "podman --runtime runc ";
+
+// Runs a shell command: its exit code and output (stdout and stderr).
+std::pair<int, std::string> sh(const std::string& command) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) throw std::runtime_error("popen failed: " + command);
+  std::string output;
+  char buffer[512];
+  while (fgets(buffer, sizeof buffer, pipe)) output += buffer;
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+std::string trimmed(std::string text) {
+  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+  return text;
+}
+
+// Seconds until the sensor at `address` answers GET sensor_info, or -1 after `timeout`.
+double seconds_until_answering(const std::string& address, std::chrono::steady_clock::time_point since,
+                               std::chrono::seconds timeout = std::chrono::seconds(30)) {
+  httplib::Client client(address, 80);
+  client.set_connection_timeout(std::chrono::milliseconds(200));
+  while (std::chrono::steady_clock::now() - since < timeout) {
+    if (const auto answer = client.Get("/api/v1/sensor/metadata/sensor_info"); answer && answer->status == 200) {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return -1.0;
+}
+
+// A client as the SDK 1.0 is one: configures the sensor at `address`, then takes 3 scans of its
+// packets, which must come from that address and be complete.
+void expect_complete_scans_from(const std::string& address, const std::string& mode = "512x10") {
+  SCOPED_TRACE("sensor " + address);
+  UdpSocket lidar;
+  UdpSocket imu;
+  SensorHttp http(address, 80);
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.imu_port = imu.port();
+  request.lidar_mode = mode;
+  const Metadata metadata = parse(sdk10_sensor_packet_source(http, request));
+  ScanBatcher batcher(metadata.format);
+  expect_complete_scans(receive_scans(lidar, batcher, 3, std::chrono::seconds(20), address), metadata, 3);
+}
+
+class Container : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (geteuid() != 0) GTEST_SKIP() << "podman here needs root";
+    const auto [code, output] = sh(kPodman + "image exists " + kImage);
+    ASSERT_EQ(code, 0) << kImage << " is not built: run tools/container-check\n" << output;
+  }
+};
+
+// The image's own command (serve --address 0.0.0.0) on podman's bridge network: the health check
+// passes and a client on the host gets complete scans from the container's address.
+TEST_F(Container, TheImageIsHealthyAndStreamsCompleteScansToAClientOnTheHost) {
+  const std::string name = "lidartwin-check-" + std::to_string(getpid());
+  const auto started = std::chrono::steady_clock::now();
+  const auto [code, output] = sh(kPodman + "run -d --rm --name " + name + " " + kImage);
+  ASSERT_EQ(code, 0) << output;
+  struct Stop {
+    std::string name;
+    ~Stop() { sh(kPodman + "stop -t 2 " + name); }
+  } stop{name};
+  const std::string address = trimmed(sh(kPodman + "inspect -f '{{.NetworkSettings.IPAddress}}' " + name).second);
+  ASSERT_FALSE(address.empty());
+  const double answering_s = seconds_until_answering(address, started);
+  ASSERT_GT(answering_s, 0.0) << sh(kPodman + "logs " + name).second;
+  const std::string size = trimmed(sh(kPodman + "image inspect -f '{{.Size}}' " + kImage).second);
+  std::printf("image %s: %.1f MB; from podman run to the HTTP API answering: %.2f s\n", kImage.c_str(),
+              std::stod(size) / 1e6, answering_s);
+
+  EXPECT_EQ(sh(kPodman + "healthcheck run " + name).first, 0) << "the image's HEALTHCHECK";
+  EXPECT_EQ(trimmed(sh(kPodman + "exec " + name + " id -u").second), "10001") << "the sensor runs without root";
+  expect_complete_scans_from(address);
+}
+
+// Plays a manifest of docker/kubernetes/ and takes it down again at the end of the scope.
+class KubePlay {
+ public:
+  explicit KubePlay(const std::string& manifest) : manifest_(kSource + "/docker/kubernetes/" + manifest) {
+    sh(kPodman + "kube down " + manifest_);  // a run interrupted earlier
+    const auto [code, output] = sh(kPodman + "kube play " + manifest_);
+    if (code != 0) throw std::runtime_error("podman kube play " + manifest_ + ":\n" + output);
+  }
+  ~KubePlay() { sh(kPodman + "kube down " + manifest_); }
+  KubePlay(const KubePlay&) = delete;
+  KubePlay& operator=(const KubePlay&) = delete;
+
+ private:
+  std::string manifest_;
+};
+
+// Sends the vehicle standing still in the plant to the rig's multicast group on the loopback, at
+// 100 Hz, stamped on CLOCK_MONOTONIC, until stopped.
+class VehiclePoses {
+ public:
+  VehiclePoses() : thread_([this](const std::stop_token& stop) { send(stop); }) {}
+
+ private:
+  static void send(const std::stop_token& stop) {
+    const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    in_addr loopback{};
+    inet_pton(AF_INET, "127.0.0.1", &loopback);
+    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_IF, &loopback, sizeof loopback);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(7600);
+    inet_pton(AF_INET, "239.255.77.1", &to.sin_addr);
+    for (uint32_t sequence = 0; !stop.stop_requested(); ++sequence) {
+      RigPose pose;
+      pose.sequence = sequence;
+      pose.time_ns = monotonic_now_ns();
+      pose.position = {12.0, 9.0, 0.0};  // on the plant's ground, by its first trajectory pose
+      const std::vector<uint8_t> bytes = pose_datagram(pose);
+      sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to);
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    close(fd);
+  }
+  std::jthread thread_;
+};
+
+struct Expected {
+  std::string address;
+  std::string prod_line;
+};
+
+void expect_each_its_own_sensor(const std::vector<Expected>& sensors) {
+  std::set<std::string> serials;
+  for (const Expected& sensor : sensors) {
+    ASSERT_GT(seconds_until_answering(sensor.address, std::chrono::steady_clock::now()), 0.0) << sensor.address;
+    SensorHttp http(sensor.address, 80);
+    const json info = http.get_json("sensor/metadata/sensor_info");
+    EXPECT_EQ(info.at("prod_line"), sensor.prod_line) << sensor.address;
+    serials.insert(info.at("prod_sn").get<std::string>());
+  }
+  EXPECT_EQ(serials.size(), sensors.size()) << "each sensor has its own serial number";
+}
+
+// docker/kubernetes/rig-pod.yaml: one container per sensor, all following one multicast pose stream.
+TEST_F(Container, TheKubernetesPodsSensorsEachStreamFollowingOneMulticastPoseStream) {
+  const KubePlay pod("rig-pod.yaml");
+  const VehiclePoses poses;
+  const std::vector<Expected> sensors{
+      {"127.0.0.12", "OS-1-128"}, {"127.0.0.13", "OS-0-32-U1"}, {"127.0.0.14", "OS-0-32-U1"}};
+  expect_each_its_own_sensor(sensors);
+  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address);
+}
+
+// docker/kubernetes/rig-deployment.yaml: serve --rig rigs/vehicle.json, one process.
+TEST_F(Container, TheKubernetesDeploymentServesTheExampleRigFromOneProcess) {
+  const KubePlay deployment("rig-deployment.yaml");
+  const std::vector<Expected> sensors{
+      {"127.0.0.2", "OS-1-128"}, {"127.0.0.3", "OS-0-32-U1"}, {"127.0.0.4", "OS-0-32-U1"}};
+  expect_each_its_own_sensor(sensors);
+  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address);
+}
+
+}  // namespace
+}  // namespace lidartwin::e2e
