@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,7 @@
 #include "cli/format_validators.h"
 #include "cli/rig_file.h"
 #include "cli/sensor_physics.h"
+#include "cli/serve_motion.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/error.h"
 #include "lidartwin/packet/data_format.h"
@@ -50,24 +53,48 @@ struct RecordFlags {
   int columns_per_packet = 16;
   bool ideal = false;
   double uptime_s = kDefaultUptimeS;
-  std::string rig;  // --rig FILE: a capture per sensor of the rig (docs/rig.md), in OUT/<name>/
+  std::string rig;             // --rig FILE: a capture per sensor of the rig (docs/rig.md), in OUT/<name>/
+  std::string trajectory_end;  // hold, loop, stop; empty: loop if it closes, else hold (as serve)
 };
 
-std::unique_ptr<PoseSource> load_poses(const RecordFlags& flags) {
+// What moves the recorded sensor (or the rig's vehicle): a fixed pose, or the trajectory played as
+// --trajectory-end says.
+struct RecordMotion {
+  std::unique_ptr<PoseSource> poses;
+  std::optional<double> stops_after_s;  // --trajectory-end stop: the trajectory's duration
+  // The frames to record at `fps`: those asked for, or those the trajectory lasts if it stops first.
+  int frames(int requested, int fps) const {
+    if (!stops_after_s) return requested;
+    const int lasts = static_cast<int>(std::floor(*stops_after_s * fps + 1e-6));
+    if (lasts < 1) {
+      throw InputError(fmt::format("--trajectory-end stop: the trajectory lasts {} s, less than one frame at {} Hz",
+                                   *stops_after_s, fps));
+    }
+    return std::min(requested, lasts);
+  }
+};
+
+RecordMotion load_motion(const RecordFlags& flags) {
   if (flags.trajectory.empty() == flags.pose.empty()) throw InputError("record: give one of --trajectory or --pose");
   if (!flags.pose.empty()) {
     try {
-      return std::make_unique<StaticPose>(parse_pose(flags.pose));
+      return {std::make_unique<StaticPose>(parse_pose(flags.pose)), std::nullopt};
     } catch (const InputError& e) {
       throw InputError(std::string("--pose: ") + e.what());
     }
   }
-  Trajectory trajectory = Trajectory::load_tum(flags.trajectory);  // loops: closed flights repeat
+  const Trajectory trajectory = Trajectory::load_tum(flags.trajectory);
   if (trajectory.start_s() < 0.0) {
     throw InputError("--trajectory " + flags.trajectory + ": starts at a negative time (" +
                      std::to_string(trajectory.start_s()) + " s); times become sensor timestamps in ns");
   }
-  return std::make_unique<TrajectoryPoses>(std::move(trajectory));
+  const TrajectoryEndChoice end = choose_trajectory_end(flags.trajectory_end, trajectory);
+  std::fprintf(stderr, "record: at its end the trajectory %s (%s)\n",
+               std::string(end.end == TrajectoryEnd::kStop ? "stops the capture" : meaning(end.end)).c_str(),
+               end.why.c_str());
+  RecordMotion motion{std::make_unique<TrajectoryPlayback>(trajectory, end.end, false), std::nullopt};
+  if (end.end == TrajectoryEnd::kStop) motion.stops_after_s = trajectory.duration_s();
+  return motion;
 }
 
 // The config recorded: the flags; for a twin of a unit, the unit's mode, profile and columns per
@@ -211,20 +238,21 @@ int run_record_rig(const RecordFlags& flags) {
       throw InputError(fmt::format("--rig {}: sensor \"{}\": {}", flags.rig, sensor.name, e.what()));
     }
   }
-  const std::unique_ptr<PoseSource> vehicle = load_poses(flags);
+  const RecordMotion vehicle = load_motion(flags);
   const Scene scene = Scene::load(flags.scene);
   catch_stop_signals();
   for (Planned& p : planned) {
-    const MountedPoses poses(*vehicle, p.mounting);
+    const MountedPoses poses(*vehicle.poses, p.mounting);
     SensorPhysics physics = sensor_physics(p.choice.profile, flags.ideal);
-    const ProgressBar bar(flags.frames, p.metadata.format.fps);
+    const int planned_frames = vehicle.frames(flags.frames, p.metadata.format.fps);
+    const ProgressBar bar(planned_frames, p.metadata.format.fps);
     const int frames =
         record({scene, poses, p.choice.profile.max_range_m, std::move(physics.chain), p.metadata, p.flags.seed,
-                flags.threads, flags.frames, p.flags.out, physics.imu, flags.uptime_s, &stop_requested},
+                flags.threads, planned_frames, p.flags.out, physics.imu, flags.uptime_s, &stop_requested},
                [&bar](int done) { bar.update(done); });
-    if (frames < flags.frames) {
+    if (frames < planned_frames) {
       std::fprintf(stderr, "\nrecord: interrupted after %d of %d frames of %s; %s holds them, every file complete\n",
-                   frames, flags.frames, p.flags.out.c_str(), p.flags.out.c_str());
+                   frames, planned_frames, p.flags.out.c_str(), p.flags.out.c_str());
       return 130;
     }
     std::printf("recorded %d frames of %s (%s, sn %s) to %s\n", frames, p.choice.profile.name.c_str(),
@@ -240,22 +268,24 @@ int run_record(const RecordFlags& flags) {
   const SensorChoice sensor = load_sensor(flags.profile);
   const SensorProfile& profile = sensor.profile;
   const Metadata metadata = make_record_metadata(flags, sensor);
-  const std::unique_ptr<PoseSource> poses = load_poses(flags);
+  const RecordMotion motion = load_motion(flags);
   const Scene scene = Scene::load(flags.scene);
   SensorPhysics physics = sensor_physics(profile, flags.ideal);
-  const ProgressBar bar(flags.frames, metadata.format.fps);
+  const int planned_frames = motion.frames(flags.frames, metadata.format.fps);
+  const ProgressBar bar(planned_frames, metadata.format.fps);
   catch_stop_signals();
-  const int frames = record({scene, *poses, profile.max_range_m, std::move(physics.chain), metadata, flags.seed,
-                             flags.threads, flags.frames, flags.out, physics.imu, flags.uptime_s, &stop_requested},
+  const int frames = record({scene, *motion.poses, profile.max_range_m, std::move(physics.chain), metadata, flags.seed,
+                             flags.threads, planned_frames, flags.out, physics.imu, flags.uptime_s, &stop_requested},
                             [&bar](int done) { bar.update(done); });
-  if (frames == flags.frames) {
-    std::printf("recorded %d frames of %s (%s) to %s: capture.pcap, metadata.json, poses.tum%s\n", frames,
+  if (frames == planned_frames) {
+    std::printf("recorded %d frames of %s (%s) to %s: capture.pcap, metadata.json, poses.tum%s%s\n", frames,
                 profile.name.c_str(), metadata.config_params.value("lidar_mode", "").c_str(), flags.out.c_str(),
-                poses->constant() ? "" : ", column_poses.tum");
+                motion.poses->constant() ? "" : ", column_poses.tum",
+                frames < flags.frames ? "; the trajectory ended there (--trajectory-end stop)" : "");
     return 0;
   }
   std::fprintf(stderr, "\nrecord: interrupted after %d of %d frames; %s holds them, every file complete\n", frames,
-               flags.frames, flags.out.c_str());
+               planned_frames, flags.out.c_str());
   return 130;  // the shell's code for an interrupted command (128 + SIGINT)
 }
 
@@ -266,11 +296,15 @@ void setup_record(CLI::App& app, std::function<int()>& run) {
                   "sensor profile name (e.g. os1-64) or .json path, or a unit's metadata .json (a twin of that unit: "
                   "its mode, udp profile and columns per packet unless given)");
   sub->add_option("--scene", flags->scene, "glTF scene (.glb/.gltf)")->required()->check(CLI::ExistingFile);
-  auto* trajectory =
-      sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (loops if shorter than the capture)")
-          ->check(CLI::ExistingFile);
+  auto* trajectory = sub->add_option("--trajectory", flags->trajectory, "TUM trajectory (see --trajectory-end)")
+                         ->check(CLI::ExistingFile);
   sub->add_option("--pose", flags->pose, "a fixed pose \"x y z qx qy qz qw\" (world frame, Z up)")
       ->excludes(trajectory);
+  sub->add_option("--trajectory-end", flags->trajectory_end,
+                  "past the trajectory's last pose: hold it, loop, or stop the capture there (default: loop a "
+                  "trajectory that closes, hold one that does not, as serve does)")
+      ->check(CLI::IsMember({"hold", "loop", "stop"}))
+      ->excludes("--pose");
   auto* mode = sub->add_option("--mode", flags->mode, "lidar_mode, one of the profile's")
                    ->check(lidar_mode_validator())
                    ->capture_default_str();

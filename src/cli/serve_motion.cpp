@@ -10,23 +10,25 @@ namespace lidartwin::cli {
 
 namespace {
 
-struct EndChoice {
-  TrajectoryEnd end;
-  std::string why;
-};
+bool waits_for_client(const ServeFlags& flags) {
+  if (flags.motion_start == "daemon") return false;
+  if (flags.motion_start == "configured") return true;
+  throw InputError("--motion-start " + flags.motion_start + ": must be daemon or configured");
+}
 
-// --trajectory-end, else loop a trajectory that closes and hold one that does not: looping an open
-// one would jump the sensor from where it ends to where it starts (yard_flight.tum ends hovering
-// 5 m above its pad).
-EndChoice choose_end(const ServeFlags& flags, const Trajectory& trajectory) {
+}  // namespace
+
+// Looping an open trajectory would jump the sensor from where it ends to where it starts
+// (yard_flight.tum ends hovering 5 m above its pad): by default only one that closes loops.
+TrajectoryEndChoice choose_trajectory_end(const std::string& flag, const Trajectory& trajectory) {
   const TrajectoryClosure gap = closure(trajectory);
   const std::string measured = fmt::format(
       "its last pose is {:.3f} m and {:.2f} deg from its first; it closes within {} m and {:.2f} deg", gap.gap_m,
       gap.gap_rad * 180.0 / std::numbers::pi, kClosesWithinM, kClosesWithinRad * 180.0 / std::numbers::pi);
-  if (!flags.trajectory_end.empty()) {
-    const auto end = trajectory_end_from_string(flags.trajectory_end);
-    if (!end) throw InputError("--trajectory-end " + flags.trajectory_end + ": must be hold, loop or stop");
-    return {*end, "--trajectory-end " + flags.trajectory_end + " (" + measured + ")"};
+  if (!flag.empty()) {
+    const auto end = trajectory_end_from_string(flag);
+    if (!end) throw InputError("--trajectory-end " + flag + ": must be hold, loop or stop");
+    return {*end, "--trajectory-end " + flag + " (" + measured + ")"};
   }
   if (gap.closes()) return {TrajectoryEnd::kLoop, "it closes: " + measured};
   return {TrajectoryEnd::kHold, "it does not close: " + measured};
@@ -40,14 +42,6 @@ std::string_view meaning(TrajectoryEnd end) {
   }
   return "";
 }
-
-bool waits_for_client(const ServeFlags& flags) {
-  if (flags.motion_start == "daemon") return false;
-  if (flags.motion_start == "configured") return true;
-  throw InputError("--motion-start " + flags.motion_start + ": must be daemon or configured");
-}
-
-}  // namespace
 
 Motion load_motion(const ServeFlags& flags, int64_t epoch_steady_ns) {
   Motion motion;
@@ -74,7 +68,7 @@ Motion load_motion(const ServeFlags& flags, int64_t epoch_steady_ns) {
     motion.description = "a fixed pose";
     return motion;
   }
-  const EndChoice end = choose_end(flags, trajectory);
+  const TrajectoryEndChoice end = choose_trajectory_end(flags.trajectory_end, trajectory);
   motion.trajectory = std::make_unique<TrajectoryPlayback>(trajectory, end.end, motion.waits_for_client);
   motion.description =
       fmt::format("trajectory of {:.2f} s, starting {}; at its end it {} ({})", trajectory.duration_s(),

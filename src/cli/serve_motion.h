@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "cli/serve_inputs.h"
 #include "lidartwin/pose/live_poses.h"
@@ -22,5 +23,14 @@ struct Motion {
 // Throws InputError naming the flag: live poses with --pose/--trajectory, a bad --trajectory-end or
 // --motion-start, "stop" for a fixed pose.
 Motion load_motion(const ServeFlags& flags, int64_t epoch_steady_ns);
+
+// What a trajectory's end means (serve and record): --trajectory-end's value (`flag`), else loop a
+// trajectory that closes and hold one that does not. `why` says which and how far it is from closing.
+struct TrajectoryEndChoice {
+  TrajectoryEnd end;
+  std::string why;
+};
+TrajectoryEndChoice choose_trajectory_end(const std::string& flag, const Trajectory& trajectory);
+std::string_view meaning(TrajectoryEnd end);  // "holds its last pose", "loops", "stops the streams"
 
 }  // namespace lidartwin::cli
