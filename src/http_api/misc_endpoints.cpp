@@ -50,12 +50,15 @@ ApiResponse get_time_system(Sensor& sensor, const ApiRequest&) {
 }
 
 // A reduced FW 2.x/3.x shape: "time" is the active timestamp_mode's clock, "time_options" what
-// each clock reads at the same instant (seconds).
+// each clock reads at the same instant (seconds). When the packets carry another clock (lock-step's
+// simulation time, --stamp-pose-clock's poses' clock), every reading is that clock's: what a client
+// compares with the packets' timestamps.
 ApiResponse get_time_sensor(Sensor& sensor, const ApiRequest&) {
   const auto config = sensor.active_config();
   const TimeBase& time = sensor.time();
   const int64_t steady_ns = TimeBase::steady_now_ns();
-  const auto at = [&](TimestampMode mode) { return seconds(time.time_ns(mode, steady_ns)); };
+  const std::optional<int64_t> packets_ns = sensor.packets_clock_ns();
+  const auto at = [&](TimestampMode mode) { return seconds(packets_ns ? *packets_ns : time.time_ns(mode, steady_ns)); };
   return json_response({
       {"timestamp",
        {{"mode", config.value("timestamp_mode", "TIME_FROM_INTERNAL_OSC")},

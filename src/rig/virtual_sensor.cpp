@@ -37,9 +37,26 @@ RigContext with_time_base(RigContext rig) {
   if (!rig.time) rig.time = std::make_shared<const TimeBase>(TimeBase::from_host());
   return rig;
 }
-SensorOptions with_time(SensorOptions options, const RigContext& rig, VirtualSensor& sensor) {
+SensorOptions with_time(SensorOptions options, const RigContext& rig, VirtualSensor& sensor, bool lock_step,
+                        bool stamp_pose_clock) {
   options.time = rig.time;
   if (rig.waiting_motion) options.on_client = [&sensor](ClientEvent event) { sensor.on_client(event); };
+  // The packets' clock, when it is the poses': in lock-step the simulation's time is the newest
+  // pose's (packets go out up to it); stamped on the poses' clock, it runs on from the newest pose.
+  LivePoses* live = rig.live;
+  if (live && lock_step) {
+    options.packets_clock_ns = [live]() -> std::optional<int64_t> {
+      const LivePoseStats stats = live->stats();
+      if (!stats.newest) return std::nullopt;
+      return stats.newest->time_ns;
+    };
+  } else if (live && stamp_pose_clock) {
+    options.packets_clock_ns = [live]() -> std::optional<int64_t> {
+      const LivePoseStats stats = live->stats();
+      if (!stats.newest) return std::nullopt;
+      return TimeBase::steady_now_ns() - stats.clock_offset_ns;
+    };
+  }
   return options;
 }
 StreamerOptions with_time(StreamerOptions options, const RigContext& rig) {
@@ -72,7 +89,8 @@ VirtualSensor::VirtualSensor(const RigContext& rig, VirtualSensorSetup setup)
       frames_ahead_(setup.streamer.frames_ahead),
       faults_(std::move(setup.faults), setup.name),
       fault_timer_(rig.io),
-      sensor_(std::move(setup.identity), with_time(std::move(setup.sensor), rig_, *this)),
+      sensor_(std::move(setup.identity),
+              with_time(std::move(setup.sensor), rig_, *this, setup.streamer.lock_step, setup.stamp_pose_clock)),
       http_(sensor_, with_extensions(named(std::move(setup.http), setup.name), *this, faults_)),
       streamer_(
           rig.io,

@@ -54,6 +54,10 @@ std::optional<UserDataPolicy> user_data_policy_from_string(std::string_view text
   return std::nullopt;
 }
 
+std::optional<int64_t> Sensor::packets_clock_ns() const {
+  return options_.packets_clock_ns ? options_.packets_clock_ns() : std::nullopt;
+}
+
 Sensor::Sensor(SensorIdentity identity, SensorOptions options)
     : identity_(std::move(identity)),
       options_(std::move(options)),

@@ -356,6 +356,11 @@ TEST(LivePosesClock, PacketsCarryThePosesClockWhenAsked) {
     }
     EXPECT_NEAR(static_cast<double>(static_cast<int64_t>(last) - (d->received_ns + kAhead)) * 1e-9, 0.0, 0.03);
   }
+  // The sensor's time is the packets' clock too (time/sensor, in every timestamp mode).
+  const json time = client->get_json("time/sensor").at("timestamp");
+  const double expected_s = static_cast<double>(monotonic_ns() + kAhead) * 1e-9;
+  EXPECT_NEAR(time.at("time").get<double>(), expected_s, 0.05) << time.dump();
+  EXPECT_NEAR(time.at("time_options").at("ptp_1588").get<double>(), expected_s, 0.05) << time.dump();
   done = true;
   rig.join();
   client.reset();
@@ -410,6 +415,9 @@ TEST_P(LockStep, FramesFollowTheSimulationClockExactlyAtAnySpeed) {
     done = true;
     receiver.join();
   }
+  // The sensor's time is the simulation's: the newest pose's, as the packets carry it.
+  const json time = http.get_json("time/sensor").at("timestamp");
+  EXPECT_DOUBLE_EQ(time.at("time").get<double>(), static_cast<double>(sim_end) * 1e-9) << time.dump();
   client.reset();  // closes the keep-alive connection, so the daemon stops at once
   EXPECT_EQ(daemon.stop(), 0) << daemon.log();
 

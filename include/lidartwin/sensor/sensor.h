@@ -56,6 +56,10 @@ struct SensorOptions {
   // Told of client events on the client's HTTP thread: kReinit after the config was activated and
   // before subscribers hear of it. Must be quick and must not call the sensor.
   std::function<void(ClientEvent)> on_client = nullptr;
+  // When the packets carry a clock that is not the sensor's own (lock-step: the simulation's; with
+  // --stamp-pose-clock: the poses'), what it reads now, in ns; nullopt until it is known.
+  // GET time/sensor then reports it, whatever the timestamp_mode. Any thread.
+  std::function<std::optional<int64_t>()> packets_clock_ns = nullptr;
 };
 
 // An entry of GET sensor/alerts (protocol doc 2.5: HIL tests read "active" and "log"; each entry
@@ -142,6 +146,8 @@ class Sensor {
   void set_stream_stats(const StreamStats& stats);
   StreamStats stream_stats() const;
   const TimeBase& time() const { return *time_; }
+  // SensorOptions::packets_clock_ns: nullopt when the packets carry the sensor's own clocks.
+  std::optional<int64_t> packets_clock_ns() const;
   // The active config's timestamp_mode (protocol doc 6.3): the clock the sensor's time reads.
   TimestampMode timestamp_mode() const;
 
