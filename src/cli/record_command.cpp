@@ -92,6 +92,9 @@ RecordMotion load_motion(const RecordFlags& flags) {
   std::fprintf(stderr, "record: at its end the trajectory %s (%s)\n",
                std::string(end.end == TrajectoryEnd::kStop ? "stops the capture" : meaning(end.end)).c_str(),
                end.why.c_str());
+  // A looped trajectory is played by TrajectoryPoses itself, whose span() gives the IMU its exact
+  // motion (TrajectoryPlayback, which can hold, has none).
+  if (end.end == TrajectoryEnd::kLoop) return {std::make_unique<TrajectoryPoses>(trajectory), std::nullopt};
   RecordMotion motion{std::make_unique<TrajectoryPlayback>(trajectory, end.end, false), std::nullopt};
   if (end.end == TrajectoryEnd::kStop) motion.stops_after_s = trajectory.duration_s();
   return motion;
