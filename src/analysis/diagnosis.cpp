@@ -19,9 +19,11 @@
 namespace lidartwin {
 namespace {
 
+using analysis_detail::add_intervals;
 using analysis_detail::candidate_specs;
 using analysis_detail::CandidateSpec;
 using analysis_detail::fit;
+using analysis_detail::Intervals;
 using analysis_detail::Placement;
 using analysis_detail::refit_spec;
 using analysis_detail::with_candidate;
@@ -98,12 +100,14 @@ void refit_own_effects(Search& s, Diagnosis& d) {
   }
 }
 
-// Every candidate of the pool fitted given the chain, best first.
+// Every candidate of the pool fitted given the chain, best first. The first round's are ranked
+// with their intervals; later rounds' only compete (the one kept gets its intervals then).
 std::vector<Candidate> fit_candidates(const Search& s, const std::vector<const CandidateSpec*>& pool) {
   std::vector<Candidate> fits;
+  const Intervals intervals = s.round == 1 ? Intervals::kWith : Intervals::kWithout;
   for (const CandidateSpec* spec : pool) {
     s.say(fmt::format("round {}: fitting {}, {} of {}", s.round, spec->effect, fits.size() + 1, pool.size()));
-    fits.push_back(fit(s.table, s.rows, Placement{s.chain, {}}, s.nll, *spec));
+    fits.push_back(fit(s.table, s.rows, Placement{s.chain, {}}, s.nll, *spec, nullptr, intervals));
   }
   std::sort(fits.begin(), fits.end(), [](const Candidate& a, const Candidate& b) { return a.delta_bic > b.delta_bic; });
   return fits;
@@ -131,7 +135,8 @@ std::optional<Step> best_replacement(const Search& s, const Diagnosis& d) {
        analysis_detail::noise_law_forms(s.chain, *index, s.table, s.rows, s.options.datasheet_noise)) {
     Step step{{}, std::move(form), index, removed};
     s.say(fmt::format("round {}: fitting {} in place of the noise law", s.round, step.spec.effect));
-    step.candidate = fit(s.table, s.rows, Placement{s.chain, index, true}, s.nll, step.spec);
+    step.candidate =
+        fit(s.table, s.rows, Placement{s.chain, index, true}, s.nll, step.spec, nullptr, Intervals::kWithout);
     score_replacement(step.candidate, step, s.log_n());
     if (!best || step.candidate.delta_bic > best->candidate.delta_bic) best = std::move(step);
   }
@@ -161,7 +166,7 @@ void note_shared(const Search& s, Diagnosis& d, const Kept& last, const std::vec
     if (now == fits.end() || now->delta_bic >= s.options.min_delta_bic) continue;
     const EffectChain with_alone = with_candidate(last.before, alone.effect_json);
     Candidate kept_given = fit(s.table, s.rows, Placement{with_alone, kept.replaces, kept.replaces.has_value()},
-                               last.before_nll - alone.delta_nll, kept.spec);
+                               last.before_nll - alone.delta_nll, kept.spec, nullptr, Intervals::kWithout);
     if (kept.replaces) score_replacement(kept_given, kept, s.log_n());
     SharedMisfit shared{
         alone.effect, kept.candidate.effect, alone.delta_bic, now->delta_bic, kept_given.delta_bic, {}, ""};
@@ -195,7 +200,8 @@ std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candid
   if (pattern.quantity.empty()) return std::nullopt;
   const double with_pattern = analysis_detail::total_nll(s.table, s.rows, s.chain, &adjust);
   const double pattern_bic = 2.0 * (s.nll - with_pattern) - pattern.dof * s.log_n();
-  const Candidate given = fit(s.table, s.rows, Placement{s.chain, {}}, with_pattern, spec, &adjust);
+  const Candidate given =
+      fit(s.table, s.rows, Placement{s.chain, {}}, with_pattern, spec, &adjust, Intervals::kWithout);
   if (given.delta_bic >= s.options.min_delta_bic) return std::nullopt;
   const EffectChain with = with_candidate(s.chain, best.effect_json);
   const PixelTable& then = s.predicted_by(with);
@@ -248,6 +254,7 @@ std::vector<Step> search_steps(Search& s, Diagnosis& d) {
     if (form && form->candidate.delta_bic >= s.options.min_delta_bic &&
         (!best || form->candidate.delta_bic > best->delta_bic)) {
       step = std::move(*form);
+      add_intervals(s.table, s.rows, Placement{s.chain, step.replaces, true}, step.spec, step.candidate);
       Replacement r{std::string(s.chain.effects()[*step.replaces]->name()),
                     "",
                     *step.replaces,
@@ -268,7 +275,8 @@ std::vector<Step> search_steps(Search& s, Diagnosis& d) {
         d.not_selected.push_back(std::move(*n));
         break;
       }
-      d.selected.push_back(*best);
+      if (s.round > 1) add_intervals(s.table, s.rows, Placement{s.chain, {}}, step.spec, step.candidate);
+      d.selected.push_back(step.candidate);
     }
     last = Kept{fits, step, s.chain, s.nll};
     s.chain = chain_after(s.chain, step);

@@ -274,80 +274,65 @@ Eigen::MatrixXd score_covariance(const PixelTable& t, const FitRows& rows,
 
 }  // namespace
 
-Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
-              const CandidateSpec& spec, const PatternAdjustment* adjust) {
-  if (spec.effect == "beam_calibration" && spec.free.empty()) {
-    return fit_beam_calibration(t, rows, place, base_nll, adjust);
+namespace {
+
+// One fit's problem: the spec's free parameters at a placement, their bounds, steps and start, and
+// the NLL of the fitted rows as a function of their values.
+class FitProblem {
+ public:
+  FitProblem(const PixelTable& t, const FitRows& rows, const Placement& place, const CandidateSpec& spec,
+             const PatternAdjustment* adjust)
+      : t_(t), rows_(rows), place_(place), spec_(spec), adjust_(adjust), start_(place.start(spec)) {
+    // Bounds from the effect's own parameter table; a refit starts from the profile's values.
+    const EffectChain probe = place.chain_with(start_);
+    const auto effect = std::find_if(probe.effects().begin(), probe.effects().end(),
+                                     [&](const auto& e) { return e->name() == spec.effect; });
+    const std::vector<EffectParameter> all = (*effect)->parameters();
+    for (const FreeParameter& f : spec.free) {
+      const auto it = std::find_if(all.begin(), all.end(), [&](const EffectParameter& p) { return p.name == f.name; });
+      lower.push_back(it->lower);
+      upper.push_back(it->upper);
+      initial.push_back(std::clamp(place.refits() ? it->value : f.start, it->lower, it->upper));
+      steps.push_back(f.step);
+    }
+    // The effects before the fitted one predict the same for every value tried: predicted once.
+    prefix_ = SharedPrefix(t, rows, probe, place.first_changed());
   }
-  // Bounds from the effect's own parameter table; a refit starts from the profile's values.
-  const nlohmann::json start = place.start(spec);
-  const EffectChain probe = place.chain_with(start);
-  const auto effect = std::find_if(probe.effects().begin(), probe.effects().end(),
-                                   [&](const auto& e) { return e->name() == spec.effect; });
-  const std::vector<EffectParameter> all = (*effect)->parameters();
-  std::vector<double> lower, upper, x, steps;
-  for (const FreeParameter& f : spec.free) {
-    const auto it = std::find_if(all.begin(), all.end(), [&](const EffectParameter& p) { return p.name == f.name; });
-    lower.push_back(it->lower);
-    upper.push_back(it->upper);
-    x.push_back(std::clamp(place.refits() ? it->value : f.start, it->lower, it->upper));
-    steps.push_back(f.step);
-  }
-  const auto effect_json = [&](const std::vector<double>& values) {
-    nlohmann::json e = start;
+
+  nlohmann::json effect_json(const std::vector<double>& values) const {
+    nlohmann::json e = start_;
     for (size_t k = 0; k < values.size(); ++k) {
-      e[pointer(spec.free[k].name)] = values[k];
-      for (const std::string& tied : spec.free[k].tied) e[pointer(tied)] = values[k];
+      e[pointer(spec_.free[k].name)] = values[k];
+      for (const std::string& tied : spec_.free[k].tied) e[pointer(tied)] = values[k];
     }
     return e;
-  };
-  // The effects before the fitted one predict the same for every value tried: predicted once.
-  const SharedPrefix prefix(t, rows, probe, place.first_changed());
-  const auto objective = [&](const std::vector<double>& values) {
-    return total_nll(t, rows, place.chain_with(effect_json(values)), prefix, adjust);
-  };
-  nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(x.size()));
-  opt.set_lower_bounds(lower);
-  opt.set_upper_bounds(upper);
-  opt.set_initial_step(steps);
-  opt.set_xtol_rel(1e-4);
-  opt.set_ftol_abs(1e-3);
-  opt.set_maxeval(std::max(150, 60 * static_cast<int>(x.size())));  // BOBYQA needs more with more parameters (knots)
-  struct Data {
-    const decltype(objective)* f;
-  } data{&objective};
-  opt.set_min_objective(
-      [](const std::vector<double>& v, std::vector<double>&, void* d) { return (*static_cast<Data*>(d)->f)(v); },
-      &data);
-  double best = base_nll;
-  // BOBYQA stops where its quadratic model says it is done, which from a start far off can be short
-  // of the optimum (a halo's rate stopped at 0.42 from a start of 0.1, 26 nats worse than 0.51),
-  // or runs out of evaluations (a warm-up's time constant stalled at 0.25 s for 0.2). So where a
-  // step of a tenth of the initial one along any parameter still gains 0.01 nats (2k evaluations,
-  // not a whole rerun), it is started again from where it got to, with a fresh trust region (at
-  // most 4 runs).
-  const auto improvable = [&] {
-    for (size_t j = 0; j < x.size(); ++j) {
-      for (const double sign : {-1.0, 1.0}) {
-        std::vector<double> v = x;
-        v[j] = std::clamp(v[j] + sign * 0.1 * steps[j], lower[j], upper[j]);
-        if (v[j] != x[j] && objective(v) < best - 0.01) return true;
-      }
-    }
-    return false;
-  };
-  for (int run = 0; run < 4; ++run) {
-    nlopt::result result = nlopt::FAILURE;
-    try {
-      result = opt.optimize(x, best);
-    } catch (const std::exception&) {  // roundoff-limited stops keep the best point found
-    }
-    if (result != nlopt::MAXEVAL_REACHED && !improvable()) break;
   }
-  Candidate c;
-  c.effect = spec.effect;
-  score_candidate(c, base_nll, best, static_cast<double>(x.size()), rows.size());
-  c.effect_json = effect_json(x);
+  double operator()(const std::vector<double>& values) const {
+    return total_nll(t_, rows_, place_.chain_with(effect_json(values)), prefix_, adjust_);
+  }
+  std::vector<double> row_nlls_at(const std::vector<double>& values) const {
+    return row_nlls(t_, rows_, place_.chain_with(effect_json(values)), prefix_, adjust_);
+  }
+  const PixelTable& table() const { return t_; }
+  const FitRows& rows() const { return rows_; }
+  const CandidateSpec& spec() const { return spec_; }
+
+  std::vector<double> lower, upper, initial, steps;
+
+ private:
+  const PixelTable& t_;
+  const FitRows& rows_;
+  const Placement& place_;
+  const CandidateSpec& spec_;
+  const PatternAdjustment* adjust_;
+  nlohmann::json start_;
+  SharedPrefix prefix_;
+};
+
+// The fitted values x (NLL best there) with their 95 % intervals, written to c.params.
+void set_intervals(const FitProblem& f, const std::vector<double>& x, double best, Candidate& c) {
+  const std::vector<double>& lower = f.lower;
+  const std::vector<double>& upper = f.upper;
   // 95 % intervals from the observed information: the NLL's Hessian by finite differences, inverted,
   // so correlated parameters (a dropout's threshold and width) widen each other's intervals. A
   // parameter at a bound gets a one-sided curvature and no cross terms.
@@ -355,14 +340,14 @@ Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, 
   std::vector<double> h(n);
   std::vector<uint8_t> inside(n);
   for (size_t j = 0; j < n; ++j) {
-    h[j] = std::max(steps[j] * 0.05, 1e-9);
+    h[j] = std::max(f.steps[j] * 0.05, 1e-9);
     inside[j] = x[j] - h[j] >= lower[j] && x[j] + h[j] <= upper[j];
   }
   const auto at = [&](size_t j, double dj, size_t k, double dk) {
     std::vector<double> v = x;
     v[j] = std::clamp(v[j] + dj, lower[j], upper[j]);
     if (k < n) v[k] = std::clamp(v[k] + dk, lower[k], upper[k]);
-    return objective(v);
+    return f(v);
   };
   Eigen::MatrixXd hessian = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
   for (size_t j = 0; j < n; ++j) {
@@ -394,28 +379,105 @@ Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, 
   for (size_t j = 0; j < n; ++j) {
     const double up = std::min(x[j] + h[j], upper[j]) - x[j], down = x[j] - std::max(x[j] - h[j], lower[j]);
     if (up + down <= 0.0) {
-      gradients[j].assign(rows.size(), 0.0);
+      gradients[j].assign(f.rows().size(), 0.0);
       continue;
     }
     std::vector<double> above = x, below = x;
     above[j] += up;
     below[j] -= down;
-    const std::vector<double> fa = row_nlls(t, rows, place.chain_with(effect_json(above)), prefix, adjust);
-    const std::vector<double> fb = row_nlls(t, rows, place.chain_with(effect_json(below)), prefix, adjust);
-    gradients[j].resize(rows.size());
-    for (size_t k = 0; k < rows.size(); ++k) gradients[j][k] = (fa[k] - fb[k]) / (up + down);
+    const std::vector<double> fa = f.row_nlls_at(above);
+    const std::vector<double> fb = f.row_nlls_at(below);
+    gradients[j].resize(f.rows().size());
+    for (size_t k = 0; k < f.rows().size(); ++k) gradients[j][k] = (fa[k] - fb[k]) / (up + down);
   }
-  const Eigen::MatrixXd robust = covariance * score_covariance(t, rows, gradients) * covariance;
+  const Eigen::MatrixXd robust = covariance * score_covariance(f.table(), f.rows(), gradients) * covariance;
+  c.params.clear();
   for (size_t j = 0; j < n; ++j) {
     const auto jj = static_cast<Eigen::Index>(j);
     const auto half_width = [&](double variance) {
       return variance > 0 && hessian(jj, jj) > 0 ? 1.96 * std::sqrt(variance) : std::numeric_limits<double>::infinity();
     };
     const double half = half_width(covariance(jj, jj)), robust_half = half_width(robust(jj, jj));
-    c.params.push_back({spec.free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half),
+    c.params.push_back({f.spec().free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half),
                         std::max(lower[j], x[j] - robust_half), std::min(upper[j], x[j] + robust_half)});
   }
+}
+
+// The values a candidate's effect JSON holds for the spec's free parameters.
+std::vector<double> fitted_values(const CandidateSpec& spec, const nlohmann::json& effect) {
+  std::vector<double> x;
+  for (const FreeParameter& f : spec.free) x.push_back(effect.at(pointer(f.name)).get<double>());
+  return x;
+}
+
+}  // namespace
+
+Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
+              const CandidateSpec& spec, const PatternAdjustment* adjust, Intervals intervals) {
+  if (spec.effect == "beam_calibration" && spec.free.empty()) {
+    return fit_beam_calibration(t, rows, place, base_nll, adjust);
+  }
+  const FitProblem problem(t, rows, place, spec, adjust);
+  std::vector<double> x = problem.initial;
+  const std::vector<double>& lower = problem.lower;
+  const std::vector<double>& upper = problem.upper;
+  const std::vector<double>& steps = problem.steps;
+  nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(x.size()));
+  opt.set_lower_bounds(lower);
+  opt.set_upper_bounds(upper);
+  opt.set_initial_step(steps);
+  opt.set_xtol_rel(1e-4);
+  opt.set_ftol_abs(1e-3);
+  opt.set_maxeval(std::max(150, 60 * static_cast<int>(x.size())));  // BOBYQA needs more with more parameters (knots)
+  opt.set_min_objective([](const std::vector<double>& v, std::vector<double>&,
+                           void* d) { return (*static_cast<const FitProblem*>(d))(v); },
+                        const_cast<FitProblem*>(&problem));
+  double best = base_nll;
+  // BOBYQA stops where its quadratic model says it is done, which from a start far off can be short
+  // of the optimum (a halo's rate stopped at 0.42 from a start of 0.1, 26 nats worse than 0.51),
+  // or runs out of evaluations (a warm-up's time constant stalled at 0.25 s for 0.2). So where a
+  // step of a tenth of the initial one along any parameter still gains 0.01 nats (2k evaluations,
+  // not a whole rerun), it is started again from where it got to, with a fresh trust region (at
+  // most 4 runs).
+  const auto improvable = [&] {
+    for (size_t j = 0; j < x.size(); ++j) {
+      for (const double sign : {-1.0, 1.0}) {
+        std::vector<double> v = x;
+        v[j] = std::clamp(v[j] + sign * 0.1 * steps[j], lower[j], upper[j]);
+        if (v[j] != x[j] && problem(v) < best - 0.01) return true;
+      }
+    }
+    return false;
+  };
+  for (int run = 0; run < 4; ++run) {
+    nlopt::result result = nlopt::FAILURE;
+    try {
+      result = opt.optimize(x, best);
+    } catch (const std::exception&) {  // roundoff-limited stops keep the best point found
+    }
+    if (result != nlopt::MAXEVAL_REACHED && !improvable()) break;
+  }
+  Candidate c;
+  c.effect = spec.effect;
+  score_candidate(c, base_nll, best, static_cast<double>(x.size()), rows.size());
+  c.effect_json = problem.effect_json(x);
+  if (intervals == Intervals::kWith) {
+    set_intervals(problem, x, best, c);
+  } else {
+    for (size_t j = 0; j < x.size(); ++j) {
+      constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
+      c.params.push_back({spec.free[j].name, x[j], kNone, kNone, kNone, kNone});
+    }
+  }
   return c;
+}
+
+void add_intervals(const PixelTable& t, const FitRows& rows, const Placement& place, const CandidateSpec& spec,
+                   Candidate& c) {
+  if (spec.effect == "beam_calibration" && spec.free.empty()) return;  // closed form: it has them
+  const FitProblem problem(t, rows, place, spec, nullptr);
+  const std::vector<double> x = fitted_values(spec, c.effect_json);
+  set_intervals(problem, x, problem(x), c);
 }
 
 // Effects added one at a time were each fitted given those before them only, so the first absorbs
@@ -432,7 +494,7 @@ void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain,
       const auto at =
           std::find_if(effects.begin(), effects.end(), [&](const auto& e) { return e->name() == fitted[k]->effect; });
       const Placement place{chain, static_cast<size_t>(at - effects.begin())};
-      const Candidate refit = fit(t, rows, place, nll, specs[k]);
+      const Candidate refit = fit(t, rows, place, nll, specs[k], nullptr, Intervals::kWithout);
       if (refit.delta_nll <= 0.0) continue;  // no better than where it stands
       chain = place.chain_with(refit.effect_json);
       nll -= refit.delta_nll;
@@ -440,6 +502,13 @@ void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain,
       fitted[k]->effect_json = refit.effect_json;
     }
     if (before - nll < 0.1) break;
+  }
+  // Each one's intervals where the passes left it, given the others' final values.
+  for (size_t k = 0; k < fitted.size(); ++k) {
+    const auto& effects = chain.effects();
+    const auto at =
+        std::find_if(effects.begin(), effects.end(), [&](const auto& e) { return e->name() == fitted[k]->effect; });
+    add_intervals(t, rows, Placement{chain, static_cast<size_t>(at - effects.begin())}, specs[k], *fitted[k]);
   }
 }
 

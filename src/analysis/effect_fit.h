@@ -103,11 +103,21 @@ struct Placement {
 // The likelihood-ratio test, BIC and catalogue id of a candidate with k free parameters.
 void score_candidate(Candidate& c, double base_nll, double nll, double k, size_t n);
 
+// Whether a fit computes its parameters' intervals: a quarter of a diagnosis' likelihood
+// evaluations (the Hessian's and the sandwich's), wasted on the many fits that only compare BICs
+// (later rounds' candidates, a joint refit's passes before the last). Without, they are NaN.
+enum class Intervals { kWith, kWithout };
+
 // The spec's free parameters fitted at `place` (NLopt BOBYQA, restarted while it still gains), from
 // the chain's NLL base_nll; scored with k = its free parameters, 95 % intervals from the curvature,
 // and robust ones from the sandwich (FittedParameter).
 Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, double base_nll,
-              const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr);
+              const CandidateSpec& spec, const PatternAdjustment* adjust = nullptr,
+              Intervals intervals = Intervals::kWith);
+
+// The intervals of a candidate fitted without them, at its values, placed at `place`.
+void add_intervals(const PixelTable& t, const FitRows& rows, const Placement& place, const CandidateSpec& spec,
+                   Candidate& c);
 
 // Each of `fitted` (effects in `chain`, found by name) refitted in its place given all the others,
 // in turn, until a pass gains less than 0.1 nats; chain, nll and the candidates are updated.
