@@ -1,7 +1,7 @@
 #pragma once
 // What the streaming benchmarks measure at the receiving end: packets received and lost, their
 // lateness against the schedule their timestamps give, the daemon's CPU use. Shared by
-// stream_bench and pose_latency_bench.
+// stream_bench, pose_latency_bench and rig_bench.
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -44,39 +44,62 @@ inline double cpu_seconds(pid_t pid) {
 struct Reception {
   size_t received = 0;
   size_t wrong_size = 0;
+  size_t blank = 0;  // every column invalid (status bit 0 clear): what a daemon sends for a render stall
   std::vector<int64_t> lateness_ns;          // read by the benchmark - scheduled
   std::vector<int64_t> arrival_lateness_ns;  // queued by the kernel (SO_TIMESTAMPNS) - scheduled
   std::map<uint64_t, size_t> per_frame;      // frame_id -> packets
 };
 
+// CLOCK_REALTIME - CLOCK_MONOTONIC: kernel arrival stamps are CLOCK_REALTIME, column timestamps
+// CLOCK_MONOTONIC.
+inline int64_t realtime_minus_monotonic_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+             .count() -
+         monotonic_now_ns();
+}
+
+// Whether any column of a packet is valid: status bit 0, in the column header (4.4) or, in LEGACY,
+// the column's 4-byte footer (4.2).
+inline bool any_valid_column(const std::vector<uint8_t>& bytes, const PacketFormat& format) {
+  const auto& f = format.format();
+  const bool legacy = f.udp_profile_lidar == UdpProfileLidar::kLegacy;
+  for (int c = 0; c < f.columns_per_packet; ++c) {
+    const size_t column = (legacy ? 0 : 32) + static_cast<size_t>(c) * format.column_size();
+    const size_t status = legacy ? column + format.column_size() - 4 : column + 10;
+    if (bytes[status] & 1) return true;
+  }
+  return false;
+}
+
 // Reads the header fields the loss and lateness figures need, straight from the bytes (4.3, 4.4;
 // LEGACY 4.2): frame_id and the last column's timestamp.
-inline void receive(UdpSocket& socket, const PacketFormat& format, double duration_s, Reception& out) {
+inline void record_packet(const e2e::Datagram& d, const PacketFormat& format, int64_t realtime_minus_monotonic,
+                          Reception& out) {
   const auto& f = format.format();
   const bool legacy = f.udp_profile_lidar == UdpProfileLidar::kLegacy;
   const size_t header = legacy ? 0 : 32;
   const size_t last_column = header + static_cast<size_t>(f.columns_per_packet - 1) * format.column_size();
+  if (d.bytes.size() != format.lidar_packet_size()) {
+    ++out.wrong_size;
+    return;
+  }
+  uint16_t frame_id = 0;
+  uint64_t ts = 0;
+  std::memcpy(&frame_id, d.bytes.data() + (legacy ? 10 : 2), 2);
+  std::memcpy(&ts, d.bytes.data() + last_column, 8);
+  ++out.received;
+  ++out.per_frame[frame_id];
+  if (!any_valid_column(d.bytes, format)) ++out.blank;
+  out.lateness_ns.push_back(d.received_ns - static_cast<int64_t>(ts));
+  out.arrival_lateness_ns.push_back(d.arrived_ns - realtime_minus_monotonic - static_cast<int64_t>(ts));
+}
+
+inline void receive(UdpSocket& socket, const PacketFormat& format, double duration_s, Reception& out) {
   const int64_t end = monotonic_now_ns() + static_cast<int64_t>(duration_s * 1e9);
-  // Kernel arrival stamps are CLOCK_REALTIME; column timestamps are CLOCK_MONOTONIC.
-  const int64_t realtime_minus_monotonic =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-          .count() -
-      monotonic_now_ns();
+  const int64_t realtime_minus_monotonic = realtime_minus_monotonic_ns();
   while (monotonic_now_ns() < end) {
     const auto d = socket.receive(std::chrono::milliseconds(200));
-    if (!d) continue;
-    if (d->bytes.size() != format.lidar_packet_size()) {
-      ++out.wrong_size;
-      continue;
-    }
-    uint16_t frame_id = 0;
-    uint64_t ts = 0;
-    std::memcpy(&frame_id, d->bytes.data() + (legacy ? 10 : 2), 2);
-    std::memcpy(&ts, d->bytes.data() + last_column, 8);
-    ++out.received;
-    ++out.per_frame[frame_id];
-    out.lateness_ns.push_back(d->received_ns - static_cast<int64_t>(ts));
-    out.arrival_lateness_ns.push_back(d->arrived_ns - realtime_minus_monotonic - static_cast<int64_t>(ts));
+    if (d) record_packet(*d, format, realtime_minus_monotonic, out);
   }
 }
 
