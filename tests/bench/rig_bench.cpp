@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -203,6 +204,25 @@ std::map<std::string, int> answering_ports(const std::string& log) {
   return ports;
 }
 
+// Calls work(i) for every sensor on a thread of its own; rethrows the first exception.
+void for_each_sensor(int sensors, const std::function<void(int)>& work) {
+  std::vector<std::exception_ptr> errors(static_cast<size_t>(sensors));
+  {
+    std::vector<std::jthread> threads;
+    for (int i = 0; i < sensors; ++i) {
+      threads.emplace_back([&, i] {
+        try {
+          work(i);
+        } catch (...) {
+          errors[static_cast<size_t>(i)] = std::current_exception();
+        }
+      });
+    }
+  }
+  for (const auto& error : errors)
+    if (error) std::rethrow_exception(error);
+}
+
 std::vector<std::unique_ptr<Daemon>> start_daemons(const std::string& mode, int sensors,
                                                    const std::vector<std::string>& serve_args) {
   std::vector<std::unique_ptr<Daemon>> daemons;
@@ -215,8 +235,11 @@ std::vector<std::unique_ptr<Daemon>> start_daemons(const std::string& mode, int 
   }
   std::vector<std::string> args{"--profile", kProfile, "--lidar-mode", kMode, "--udp-profile", kUdpProfile};
   args.insert(args.end(), serve_args.begin(), serve_args.end());
-  for (int i = 0; i < sensors; ++i)
-    daemons.push_back(std::make_unique<Daemon>(address_of(i), 0, args, std::chrono::seconds(120)));
+  // Started side by side: on a busy host each takes seconds to load the scene.
+  daemons.resize(static_cast<size_t>(sensors));
+  for_each_sensor(sensors, [&](int i) {
+    daemons[static_cast<size_t>(i)] = std::make_unique<Daemon>(address_of(i), 0, args, std::chrono::seconds(120));
+  });
   return daemons;
 }
 
@@ -238,6 +261,7 @@ void receive_all(std::vector<Stream>& streams, double duration_s) {
     fds.push_back({s.lidar->fd(), POLLIN, 0});
     fds.push_back({s.imu->fd(), POLLIN, 0});
   }
+  BatchReceiver receiver;
   const int64_t end = monotonic_now_ns() + static_cast<int64_t>(duration_s * 1e9);
   const int64_t realtime_minus_monotonic = realtime_minus_monotonic_ns();
   while (monotonic_now_ns() < end) {
@@ -245,12 +269,10 @@ void receive_all(std::vector<Stream>& streams, double duration_s) {
     for (size_t i = 0; i < fds.size(); ++i) {
       if (!(fds[i].revents & POLLIN)) continue;
       Stream& s = streams[i / 2];
-      UdpSocket& socket = i % 2 == 0 ? *s.lidar : *s.imu;
-      for (int k = 0; k < 64; ++k) {
-        const auto d = socket.receive(std::chrono::milliseconds(0));
-        if (!d) break;
-        if (i % 2 == 0) record_packet(*d, *s.format, realtime_minus_monotonic, s.reception);
-      }
+      const bool lidar = i % 2 == 0;
+      receiver.drain(fds[i].fd, [&](std::span<const uint8_t> bytes, int64_t received_ns, int64_t arrived_ns) {
+        if (lidar) record_packet(bytes, received_ns, arrived_ns, *s.format, realtime_minus_monotonic, s.reception);
+      });
     }
   }
 }
@@ -292,12 +314,12 @@ Row run(const Flags& flags, const std::string& mode, int sensors) {
   try {
     daemons = start_daemons(mode, sensors, flags.serve_args);
     std::vector<Stream> streams(static_cast<size_t>(sensors));
-    for (int i = 0; i < sensors; ++i) {
+    for_each_sensor(sensors, [&](int i) {
       Stream& s = streams[static_cast<size_t>(i)];
       s.address = address_of(i);
       s.http_port = answering_ports(daemons[mode == "rig" ? 0 : static_cast<size_t>(i)]->log()).at(s.address);
       configure(s);
-    }
+    });
     std::this_thread::sleep_for(std::chrono::duration<double>(flags.settle_s));
     for (Stream& s : streams) s.lidar->drain();
     std::vector<double> cpu_before;
