@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include <linux/sock_diag.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/socket.h>
@@ -116,6 +117,15 @@ inline void receive(UdpSocket& socket, const PacketFormat& format, double durati
 // a system call, into buffers kept between calls: a receiver of many streams on a host the
 // daemons keep busy must not spend a system call and a fresh 64 KiB buffer on every packet, or it
 // drops packets the daemons sent on time.
+// Datagrams the kernel dropped at a socket so far because its receive buffer was full (SO_MEMINFO):
+// losses of the receiver, not of the sender.
+inline uint64_t socket_drops(int fd) {
+  std::array<uint32_t, SK_MEMINFO_VARS> info{};
+  socklen_t length = sizeof info;
+  if (getsockopt(fd, SOL_SOCKET, SO_MEMINFO, info.data(), &length) != 0) return 0;
+  return info[SK_MEMINFO_DROPS];
+}
+
 class BatchReceiver {
  public:
   BatchReceiver() : buffers_(kBatch * kSize) {}
