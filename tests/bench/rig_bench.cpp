@@ -249,15 +249,25 @@ std::vector<std::unique_ptr<Daemon>> start_daemons(const std::string& mode, int 
   return daemons;
 }
 
+// As SDK 0.16's init_client, tried three times: on a host with more daemons than it can serve, an
+// HTTP answer may take longer than the client's 4 s time-out (noted on stderr).
 void configure(Stream& stream) {
-  SensorHttp http(stream.address, stream.http_port);
   ConfigRequest request;
   request.lidar_mode = kMode;
   request.udp_profile_lidar = kUdpProfile;
   request.lidar_port = stream.lidar->port();
   request.imu_port = stream.imu->port();
-  const Metadata metadata = parse_metadata(sdk016_init_client(http, request), "GET sensor/metadata");
-  stream.format.emplace(metadata.format);
+  for (int attempt = 1;; ++attempt) {
+    try {
+      SensorHttp http(stream.address, stream.http_port);
+      const Metadata metadata = parse_metadata(sdk016_init_client(http, request), "GET sensor/metadata");
+      stream.format.emplace(metadata.format);
+      return;
+    } catch (const std::exception& e) {
+      if (attempt == 3) throw;
+      std::fprintf(stderr, "rig_bench: configuring %s, attempt %d: %s\n", stream.address.c_str(), attempt, e.what());
+    }
+  }
 }
 
 // Every lidar and IMU socket, from one thread; IMU packets are only drained.
