@@ -1,8 +1,15 @@
 // The forward model as a client would decode its packets: protocol units on the wire's steps,
 // column windows, status words, timestamps and headers, columns without a pose, blank packets, and
-// the same bytes for any thread count or packet split.
+// the same bytes for any thread count or packet split; and the worker pool a rig's sensors share.
+#include <array>
+#include <atomic>
+#include <chrono>
 #include <filesystem>
+#include <future>
+#include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <unistd.h>
 
@@ -11,6 +18,7 @@
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/frame/packet_plan.h"
+#include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/profile/sensor_profile.h"
 #include "support/test_scene.h"
@@ -229,6 +237,73 @@ TEST_F(FrameTest, ImuPacketsShareTheLidarClock) {
   ASSERT_TRUE(sample.has_value());
   EXPECT_EQ(sample->sys_ts_ns, 1'000'000'000u + 12 * kImuPeriodNs);
   EXPECT_NEAR(sample->accel_g[2], 1.0f, 1e-6f);  // at rest, Z up
+}
+
+// A rig's sensors render on one pool at once: each caller's items all run, once each, and no two
+// threads of one run share a worker index (per-worker scratch is indexed by it).
+TEST(WorkerPool, SeveralCallersRunAtOnceEachItemOnceWithDistinctWorkers) {
+  WorkerPool pool(3);
+  constexpr int kCallers = 4;
+  constexpr int kItems = 200;
+  std::vector<std::vector<std::atomic<int>>> runs(kCallers);
+  std::atomic<bool> shared_index{false};
+  std::vector<std::thread> callers;
+  for (int c = 0; c < kCallers; ++c) {
+    runs[static_cast<size_t>(c)] = std::vector<std::atomic<int>>(kItems);
+    callers.emplace_back([&, c] {
+      std::array<std::atomic<int>, 3> in_use{};
+      pool.run(kItems, [&](int worker, int item) {
+        if (in_use[static_cast<size_t>(worker)].fetch_add(1) != 0) shared_index = true;
+        ++runs[static_cast<size_t>(c)][static_cast<size_t>(item)];
+        in_use[static_cast<size_t>(worker)].fetch_sub(1);
+      });
+    });
+  }
+  for (auto& caller : callers) caller.join();
+  for (const auto& run : runs)
+    for (const auto& count : run) EXPECT_EQ(count.load(), 1);
+  EXPECT_FALSE(shared_index.load());
+}
+
+// On a busy host a worker may not run for milliseconds: a caller does its items itself rather than
+// wait for a worker that has not started on them. Here the only worker is stuck in another
+// caller's item, and a second caller's run still completes.
+TEST(WorkerPool, ACallerNeverWaitsForAWorkerBusyElsewhere) {
+  WorkerPool pool(2);
+  std::promise<void> release;
+  const std::shared_future<void> released = release.get_future().share();
+  std::atomic<int> stuck{0};
+  std::thread blocked([&] {
+    pool.run(2, [&](int, int) {
+      ++stuck;
+      released.wait();
+    });
+  });
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (stuck.load() < 2 && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+  if (stuck.load() < 2) release.set_value();
+  ASSERT_EQ(stuck.load(), 2) << "the worker never took the blocked caller's second item";  // both are held
+  auto second = std::async(std::launch::async, [&] {
+    int done = 0;
+    pool.run(5, [&](int, int) { ++done; });
+    return done;
+  });
+  EXPECT_EQ(second.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+  release.set_value();
+  blocked.join();
+  EXPECT_EQ(second.get(), 5);
+}
+
+TEST(WorkerPool, RethrowsTheFirstExceptionToItsCaller) {
+  WorkerPool pool(2);
+  EXPECT_THROW(pool.run(10,
+                        [](int, int item) {
+                          if (item == 3) throw std::runtime_error("item 3");
+                        }),
+               std::runtime_error);
+  int done = 0;
+  pool.run(1, [&](int, int) { ++done; });  // and stays usable
+  EXPECT_EQ(done, 1);
 }
 
 }  // namespace

@@ -79,6 +79,26 @@ TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
     EXPECT_EQ(datagram->source_ip, sensor->http().address());
   }
 
+  // Each sensor reports its own stream's health (issue 26: when the host cannot keep up, per
+  // sensor, never a silent slowdown): its telemetry counts its own packets, stalls, skips and
+  // send lateness. Stats reach the telemetry once a second.
+  for (auto& sensor : sensors) {
+    e2e::SensorHttp http(sensor->http().address(), sensor->http().port());
+    e2e::json stats;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+    do {
+      stats = http.get_json("sensor/telemetry").at("lidartwin");
+      if (stats.at("frames_sent").get<uint64_t>() > 0) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    } while (std::chrono::steady_clock::now() < deadline);
+    EXPECT_GT(stats.at("lidar_packets_sent").get<uint64_t>(), 0u) << stats;
+    for (const char* key : {"render_stalls", "late_packets", "skipped_packets", "send_lateness_p50_us",
+                            "send_lateness_p99_us", "max_lateness_us", "render_load"}) {
+      EXPECT_TRUE(stats.contains(key)) << key << " in " << stats;
+    }
+    EXPECT_LE(stats.at("send_lateness_p50_us").get<double>(), stats.at("send_lateness_p99_us").get<double>());
+  }
+
   // The rig stops as serve does: streaming on the io thread, then everything else.
   asio::post(io, [&] {
     for (auto& sensor : sensors) sensor->stop_streaming();

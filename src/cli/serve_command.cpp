@@ -270,7 +270,9 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--udp-profile", flags->udp_profile, "initial udp_profile_lidar")->check(udp_profile_validator());
   sub->add_option("--state-file", flags->state_file, "where persisted config and user data live");
   sub->add_option("--threads", flags->threads, "ray casting threads (0 = all cores)")->check(CLI::Range(0, 1024));
-  sub->add_option("--spin-us", flags->spin_us, "wake this early and spin to each packet's deadline (0 = sleep only)")
+  sub->add_option("--spin-us", flags->spin_us,
+                  "wake this early and spin to each packet's deadline while the host's CPUs are not contended "
+                  "(0 = sleep only)")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   sub->add_option("--trajectory-end", flags->trajectory_end,

@@ -151,6 +151,11 @@ size_t ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFra
   return render_packets(frame, begin, end, out, nullptr);
 }
 
+size_t ForwardModel::render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out,
+                            const PacketReady& ready) const {
+  return render_packets(frame, begin, end, out, ready);
+}
+
 size_t ForwardModel::render_packets(uint64_t frame, size_t begin, size_t end, EncodedFrame& out,
                                     const PacketReady& ready) const {
   const auto& firsts = impl_->firsts;

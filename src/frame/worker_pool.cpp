@@ -31,52 +31,66 @@ WorkerPool::~WorkerPool() {
   threads_.clear();  // joins
 }
 
-void WorkerPool::drain(int worker) {
-  for (int item = next_.fetch_add(1); item < count_; item = next_.fetch_add(1)) {
+WorkerPool::Run* WorkerPool::open_run_locked() const {
+  for (Run* run : runs_) {
+    if (run->next.load(std::memory_order_relaxed) < run->count) return run;
+  }
+  return nullptr;
+}
+
+void WorkerPool::drain(Run& run, int worker) {
+  for (int item = run.next.fetch_add(1); item < run.count; item = run.next.fetch_add(1)) {
     try {
-      (*task_)(worker, item);
+      (*run.task)(worker, item);
     } catch (...) {
       std::lock_guard lock(mutex_);
-      if (!error_) error_ = std::current_exception();
-      next_.store(count_);  // skip the remaining items
+      if (!run.error) run.error = std::current_exception();
+      run.next.store(run.count);  // skip the remaining items
     }
   }
 }
 
+// Oldest run first, so that every caller's run is helped in turn (a rig's sensors alike).
 void WorkerPool::worker_loop(const std::stop_token& stop, int worker) {
-  uint64_t seen = 0;
+  std::unique_lock lock(mutex_);
   for (;;) {
-    {
-      std::unique_lock lock(mutex_);
-      if (!wake_.wait(lock, stop, [&] { return generation_ != seen; })) return;
-      seen = generation_;
+    Run* run = open_run_locked();
+    if (!run) {
+      ++idle_;
+      const bool woken = wake_.wait(lock, stop, [&] { return (run = open_run_locked()) != nullptr; });
+      --idle_;
+      if (!woken) return;
     }
-    drain(worker);
-    std::lock_guard lock(mutex_);
-    if (--busy_ == 0) done_.notify_all();
+    ++run->helpers;
+    lock.unlock();
+    drain(*run, worker);
+    lock.lock();
+    if (--run->helpers == 0) done_.notify_all();
   }
 }
 
 void WorkerPool::run(int count, const std::function<void(int worker, int item)>& task) {
-  std::lock_guard run_lock(run_mutex_);
   if (threads_.empty() || count <= 1) {
     for (int item = 0; item < count; ++item) task(0, item);
     return;
   }
+  Run run;
+  run.task = &task;
+  run.count = count;
+  int wake = 0;
   {
     std::lock_guard lock(mutex_);
-    task_ = &task;
-    count_ = count;
-    next_.store(0);
-    busy_ = static_cast<int>(threads_.size());
-    error_ = nullptr;
-    ++generation_;
+    runs_.push_back(&run);
+    // Workers are woken only where a core would otherwise idle: callers already running as many
+    // runs as the pool has threads keep the cores busy themselves, and every wake-up costs CPU.
+    wake = std::min({idle_, count - 1, size() - static_cast<int>(runs_.size())});
   }
-  wake_.notify_all();
-  drain(0);
+  for (int i = 0; i < wake; ++i) wake_.notify_one();
+  drain(run, 0);
   std::unique_lock lock(mutex_);
-  done_.wait(lock, [&] { return busy_ == 0; });
-  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  runs_.erase(std::find(runs_.begin(), runs_.end(), &run));  // no worker joins it from here
+  done_.wait(lock, [&] { return run.helpers == 0; });        // only those that started on it
+  if (run.error) std::rethrow_exception(run.error);
 }
 
 }  // namespace lidartwin

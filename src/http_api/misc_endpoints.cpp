@@ -38,6 +38,9 @@ ApiResponse get_telemetry(Sensor& sensor, const ApiRequest&) {
         {"frames_sent", stats.frames_sent},
         {"late_packets", stats.late_packets},
         {"render_stalls", stats.render_stalls},
+        {"skipped_packets", stats.skipped_packets},
+        {"send_lateness_p50_us", stats.lateness_p50_us},
+        {"send_lateness_p99_us", stats.lateness_p99_us},
         {"max_lateness_us", stats.max_lateness_us},
         {"render_load", stats.render_load}}},
   });

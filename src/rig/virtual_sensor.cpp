@@ -61,6 +61,7 @@ SensorOptions with_time(SensorOptions options, const RigContext& rig, VirtualSen
 }
 StreamerOptions with_time(StreamerOptions options, const RigContext& rig) {
   options.time = rig.time;
+  options.frame_grid_origin_ns = rig.epoch_steady_ns;  // the rig's sensors' frames start together
   return options;
 }
 // The live poses' clock offset (host steady - pose clock) once a pose has come.

@@ -5,6 +5,10 @@
 // send clock only copies finished bytes to the socket, so it is never late because of ray casting.
 // With live poses, running ahead makes poses stale: a paced worker casts each packet only
 // cast_ahead before it is due, so the newest pose received reaches the next packet.
+// A worker that has fallen behind the send clock (a host with more work than cores) skips the
+// packets it can no longer finish in time: they go out blank either way (render stalls), and
+// casting them would make every later packet late too, so that a short shortage of CPU would
+// stall the stream for good. Skipping keeps the stalls in proportion to the CPU that was missing.
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -54,8 +58,9 @@ class RenderAhead {
 
  private:
   struct Slot {
-    std::atomic<uint64_t> frame{UINT64_MAX};
-    std::atomic<size_t> ready{0};  // packets [0, ready) are encoded
+    explicit Slot(size_t packets);
+    // Per packet: the frame whose bytes it holds, stored (release) once they are encoded.
+    std::vector<std::atomic<uint64_t>> packet_frame;
     EncodedFrame encoded;
     std::vector<PoseFreshness> freshness;  // per packet
   };
@@ -64,6 +69,8 @@ class RenderAhead {
   bool wait_for_room(uint64_t& frame);  // false when stopping
   bool wait_until(int64_t steady_ns);   // false when stopping
   void render_frame(uint64_t frame, Slot& slot);
+  int64_t deadline_ns(uint64_t frame, size_t index) const;
+  size_t first_in_time(uint64_t frame, size_t begin, size_t end) const;
   bool abandoned(uint64_t frame) const { return frame < next_needed_.load(std::memory_order_acquire); }
 
   const ForwardModel& model_;
@@ -73,7 +80,9 @@ class RenderAhead {
   std::vector<std::unique_ptr<Slot>> slots_;
   std::atomic<uint64_t> busy_ns_{0};
   std::atomic<uint64_t> unposed_columns_{0};
+  static constexpr uint64_t kStopping = UINT64_MAX;  // next_needed_ when the worker must stop
   std::atomic<uint64_t> next_needed_{0};
+  int64_t packet_ns_ = 0;  // how long the last chunk took per packet (worker thread only)
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;  // guarded by mutex_

@@ -45,10 +45,26 @@ StreamSession::StreamSession(asio::io_context& io, FaultInjector& link, StreamCo
   blank_ = model_->make_frame_buffer();
 }
 
+// A session built off the io thread can start after its first frames were due, when the host is
+// busy: it begins with the first frame that has not begun yet, as a sensor whose reinit took longer
+// would, rather than sending those frames late or counting them as skipped (IMU samples alike).
 void StreamSession::start() {
   if (options_.lock_step) return;
-  if (packets_per_frame_ > 0) arm_lidar();
-  if (options_.send_imu) arm_imu();
+  const int64_t now = steady_now_ns();
+  if (packets_per_frame_ > 0) {
+    const uint64_t first = frame_;
+    while (timing_.steady_ns(timing_.clock.column_timestamp_ns(frame_, 0) - timing_.clock.origin_ns) < now) ++frame_;
+    if (frame_ > first) {
+      render_->finished(frame_ - 1);
+      spdlog::info("streamer: the session was ready {} frames late (a busy host): it starts with frame {}",
+                   frame_ - first, frame_);
+    }
+    arm_lidar();
+  }
+  if (options_.send_imu) {
+    while (imu_deadline_ns() < now) ++imu_index_;
+    arm_imu();
+  }
 }
 
 // Nothing is skipped or sent late here: a simulator running slower or faster than real time gets
@@ -71,9 +87,15 @@ void StreamSession::stop() {
   stopped_ = true;
   lidar_timer_.cancel();
   imu_timer_.cancel();
-  // Handlers run on this thread and check stopped_ first, so the worker can go now rather than
-  // when the last cancelled handler releases the session.
-  render_.reset();
+}
+
+// Handlers run on the io thread and check stopped_ first, so what they would read can go now,
+// rather than when the last cancelled handler releases the session.
+void StreamSession::release() {
+  render_.reset();  // before the model it renders with
+  model_.reset();
+  blank_ = {};
+  step_ = {};
 }
 
 // The packet's timestamp (its last column's) on the steady clock.
@@ -84,7 +106,7 @@ int64_t StreamSession::lidar_deadline_ns() const {
 // The timer fires spin_ns early, and the handler spins to the exact deadline: waking a sleeping
 // thread costs tens of microseconds on a virtual machine, more than item 12's pacing should drift.
 void StreamSession::arm_lidar() {
-  lidar_timer_.expires_at(steady_time(lidar_deadline_ns() - options_.spin_ns));
+  lidar_timer_.expires_at(steady_time(lidar_deadline_ns() - (options_.spin_ns ? *options_.spin_ns : 0)));
   lidar_timer_.async_wait([self = shared_from_this()](const asio::error_code& error) {
     if (!error && !self->stopped_) self->on_lidar_deadline();
   });
@@ -92,7 +114,7 @@ void StreamSession::arm_lidar() {
 
 void StreamSession::on_lidar_deadline() {
   int64_t now = steady_now_ns();
-  while (now < lidar_deadline_ns()) {  // at most spin_ns: the packet is due when its column is
+  while (now < lidar_deadline_ns()) {  // at most *spin_ns: the packet is due when its column is
     cpu_relax();
     now = steady_now_ns();
   }

@@ -43,7 +43,9 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     bool send_imu = false;
     int frames_ahead = 2;
     int render_nice = 0;
-    int64_t spin_ns = 0;            // wake this much before a lidar deadline, then spin to it
+    // Wake this much before a lidar deadline, then spin to it. The streamer's, which it changes
+    // with the host's load (it outlives the session); null: never spin.
+    const int64_t* spin_ns = nullptr;
     int64_t cast_ahead_ns = 0;      // > 0: cast each packet only this long before it is due
     bool withhold_unposed = false;  // do not send packets none of whose columns had a pose
     // The simulator owns time: no timers; advance_to() casts and sends what is due, in order.
@@ -55,7 +57,11 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
                 std::shared_ptr<const StreamConfig> config, std::unique_ptr<ForwardModel> model, SessionTiming timing,
                 Options options);
   void start();
-  void stop();  // cancels both clocks and joins the render worker
+  // Io thread: cancels both clocks; the handlers still pending find the session stopped.
+  void stop();
+  // After stop(), on any thread: joins the render worker and frees the model and the buffers (the
+  // Streamer does it off the io thread: background_jobs.h).
+  void release();
   // Lock-step: casts and sends, in order, every lidar and IMU packet stamped up to time_ns (the
   // session's clock, which in lock-step is the simulation's). On the io thread.
   void advance_to(uint64_t time_ns);

@@ -1,5 +1,6 @@
 #include "lidartwin/streamer/streamer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 
@@ -9,6 +10,7 @@
 
 #include "lidartwin/error.h"
 #include "lidartwin/metadata/metadata.h"
+#include "streamer/background_jobs.h"
 #include "streamer/fault_injector.h"
 #include "streamer/ground_truth.h"
 #include "streamer/stream_counters.h"
@@ -50,6 +52,14 @@ void write_record_metadata(const std::filesystem::path& dir, const StreamConfig&
 std::string describe(const asio::ip::address_v4& address, uint16_t port) {
   return port == 0 ? std::string("off") : address.to_string() + ":" + std::to_string(port);
 }
+
+// The first instant of the frame grid (see StreamerOptions) at or after earliest_ns.
+int64_t on_frame_grid(int64_t earliest_ns, int64_t origin_ns, int fps) {
+  const int64_t period_ns = 1'000'000'000 / std::max(1, fps);
+  const int64_t since = earliest_ns - origin_ns;
+  const int64_t frames = since <= 0 ? 0 : (since + period_ns - 1) / period_ns;
+  return origin_ns + frames * period_ns;
+}
 }  // namespace
 
 Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOptions options)
@@ -66,7 +76,9 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
       counters_(std::make_unique<streamer_detail::StreamCounters>()),
       ground_truth_(options_.record_dir.empty() ? nullptr
                                                 : std::make_unique<streamer_detail::GroundTruth>(options_.record_dir)),
-      stats_timer_(io) {
+      stats_timer_(io),
+      spin_ns_(int64_t{options_.spin_us} * 1000),
+      jobs_(std::make_unique<streamer_detail::BackgroundJobs>(options_.render_nice)) {
   arm_stats_timer();
 }
 
@@ -100,7 +112,8 @@ void Streamer::switch_to(std::shared_ptr<const StreamConfig> config) {
 
 // On the host's clock, stamped per timestamp_mode, or on the live poses' clock once it is known.
 void Streamer::start_paced_session() {
-  const int64_t start_steady_ns = steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9);
+  const int64_t start_steady_ns = on_frame_grid(steady_now_ns() + static_cast<int64_t>(options_.start_delay_s * 1e9),
+                                                options_.frame_grid_origin_ns, config_->metadata.format.fps);
   int64_t origin_ns = start_steady_ns + timestamp_offset_ns(*options_.time, *config_);
   if (options_.pose_clock_offset_ns) {
     const std::optional<int64_t> offset = options_.pose_clock_offset_ns();
@@ -126,7 +139,7 @@ void Streamer::start_paced_session() {
 
 void Streamer::pose_arrived() {
   asio::post(io_, [this] {
-    if (stopped_ || session_ || !config_ || !config_->streaming || options_.lock_step) return;
+    if (stopped_ || session_ || building_ || !config_ || !config_->streaming || options_.lock_step) return;
     start_paced_session();
   });
 }
@@ -139,9 +152,9 @@ void Streamer::advance_to(int64_t time_ns) {
     lock_step_time_ns_ = time;
     if (!session_) {
       // The simulation's clock stands in for the host's: the session's frame 0 starts now, and its
-      // timestamps and pose times are simulation time.
+      // timestamps and pose times are simulation time. Built here: the simulator waits for it.
       try {
-        start_session(config_, time_ns, time);
+        land_session(build_session(config_, time_ns, time), config_);
       } catch (const std::exception& e) {
         spdlog::error("streamer{}: cannot stream config generation {}: {}", tag_, config_->generation, e.what());
         return;
@@ -151,7 +164,37 @@ void Streamer::advance_to(int64_t time_ns) {
   });
 }
 
+// Paced sessions are built off the io thread (background_jobs.h) and start sending when they land
+// back on it; frame 0 is start_delay_s away, time enough. The io_context is kept busy meanwhile,
+// so that run() cannot return with a session still in the making.
 void Streamer::start_session(std::shared_ptr<const StreamConfig> config, int64_t start_steady_ns, uint64_t origin_ns) {
+  const uint64_t ticket = ++session_ticket_;
+  building_ = true;
+  jobs_->post([this, config = std::move(config), start_steady_ns, origin_ns, ticket,
+               busy = asio::make_work_guard(io_)]() mutable {
+    std::shared_ptr<streamer_detail::StreamSession> session;
+    try {
+      session = build_session(config, start_steady_ns, origin_ns);
+    } catch (const std::exception& e) {
+      // The sensor validated the config; a format the packet encoder refuses is reported, and the
+      // daemon stays up without streaming until the next reinit.
+      spdlog::error("streamer{}: cannot stream config generation {}: {}", tag_, config->generation, e.what());
+    }
+    asio::post(io_, [this, session = std::move(session), config = std::move(config), ticket]() mutable {
+      if (stopped_ || ticket != session_ticket_) {
+        if (session) retire(std::move(session));  // a newer config or stop() came meanwhile
+        return;
+      }
+      building_ = false;
+      if (session) land_session(std::move(session), config);
+    });
+    busy.reset();
+  });
+}
+
+// Any thread: the model, its render worker (which starts casting) and the buffers.
+std::shared_ptr<streamer_detail::StreamSession> Streamer::build_session(
+    const std::shared_ptr<const StreamConfig>& config, int64_t start_steady_ns, uint64_t origin_ns) {
   const LidarDataFormat& format = config->metadata.format;
   const UdpProfileImu imu_profile = format.udp_profile_imu;
   const bool imu = config->udp_port_imu != 0 && imu_profile == UdpProfileImu::kLegacy;
@@ -174,23 +217,38 @@ void Streamer::start_session(std::shared_ptr<const StreamConfig> config, int64_t
   session_options.send_imu = imu;
   session_options.frames_ahead = options_.frames_ahead;
   session_options.render_nice = options_.render_nice;
-  session_options.spin_ns = int64_t{options_.spin_us} * 1000;
+  session_options.spin_ns = &spin_ns_;
   session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
   session_options.withhold_unposed = options_.withhold_unposed;
   session_options.lock_step = options_.lock_step;
+  return std::make_shared<streamer_detail::StreamSession>(io_, *faults_, *counters_, ground_truth_.get(), config,
+                                                          std::move(model), timing, session_options);
+}
+
+// Io thread: the session starts sending.
+void Streamer::land_session(std::shared_ptr<streamer_detail::StreamSession> session,
+                            const std::shared_ptr<const StreamConfig>& config) {
   const bool lidar = config->udp_port_lidar != 0;
-  const std::optional<PacketFormat> packets = lidar ? std::optional<PacketFormat>(model->format()) : std::nullopt;
-  faults_->start_session(*config, packets ? &*packets : nullptr, format.fps);
-  session_ = std::make_shared<streamer_detail::StreamSession>(
-      io_, *faults_, *counters_, ground_truth_.get(), std::move(config), std::move(model), timing, session_options);
+  const std::optional<PacketFormat> packets =
+      lidar ? std::optional<PacketFormat>(config->metadata.format) : std::nullopt;
+  faults_->start_session(*config, packets ? &*packets : nullptr, config->metadata.format.fps);
+  session_ = std::move(session);
   session_->start();
 }
 
 void Streamer::stop_session() {
+  ++session_ticket_;  // a session still being built is retired when it lands
+  building_ = false;
   if (!session_) return;
   session_->stop();
-  session_.reset();
+  retire(std::move(session_));
   faults_->end_session();
+}
+
+// Io thread, after session->stop(): its worker is joined and its memory freed off the io thread.
+void Streamer::retire(std::shared_ptr<streamer_detail::StreamSession> session) {
+  session->stop();
+  jobs_->post([session = std::move(session)] { session->release(); });
 }
 
 void Streamer::stop() {

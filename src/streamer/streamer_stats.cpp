@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "lidartwin/streamer/streamer.h"
+#include "streamer/host_load.h"
 #include "streamer/stream_counters.h"
 #include "streamer/stream_session.h"
 #include "streamer/udp_sender.h"
@@ -28,10 +29,14 @@ void Streamer::arm_stats_timer() {
 }
 
 void Streamer::report_stats() {
+  follow_host_load();
   StreamStats& stats = counters_->stats;
   const uint64_t busy_ns = session_ ? session_->take_render_busy_ns() : 0;
   stats.columns_without_pose += session_ ? session_->take_unposed_columns() : 0;
   stats.render_load = static_cast<double>(busy_ns) / static_cast<double>(kStatsPeriodNs);
+  stats.skipped_packets = counters_->skipped_packets;
+  stats.lateness_p50_us = counters_->lateness.percentile_us(0.5);
+  stats.lateness_p99_us = counters_->lateness.percentile_us(0.99);
   warn_if_behind(stats.render_load);
   if (++stats_ticks_ % kDebugLogTicks == 0) {
     spdlog::debug("streamer{}: {} lidar, {} IMU packets; recent send lateness {}; render load {:.2f}", tag_,
@@ -42,12 +47,17 @@ void Streamer::report_stats() {
   if (std::unique_lock lock(snapshot_mutex_, std::try_to_lock); lock) snapshot_ = stats;
 }
 
+// The send clock spins to each deadline only while the host has CPU to spare (host_load.h).
+void Streamer::follow_host_load() {
+  if (options_.spin_us > 0) spin_ns_ = streamer_detail::host_contended() ? 0 : int64_t{options_.spin_us} * 1000;
+}
+
 void Streamer::warn_if_behind(double render_load) {
   const StreamStats& stats = counters_->stats;
   const uint64_t skipped = counters_->skipped_packets + counters_->imu_skipped;
   const bool news = stats.render_stalls > warned_stalls_ || skipped > warned_skips_ ||
-                    sender_->errors() > warned_errors_ || stats.columns_without_pose > warned_unposed_ ||
-                    stats.withheld_packets > warned_withheld_;
+                    stats.late_packets > warned_late_ || sender_->errors() > warned_errors_ ||
+                    stats.columns_without_pose > warned_unposed_ || stats.withheld_packets > warned_withheld_;
   const int64_t now = steady_now_ns();
   if (!news || now - last_warning_ns_ < kWarningIntervalNs) return;
   if (stats.render_stalls > warned_stalls_) {
@@ -55,6 +65,12 @@ void Streamer::warn_if_behind(double render_load) {
         "streamer{}: casting is behind the send clock: {} packets sent on time with their columns marked "
         "invalid ({} in total; render load {:.2f}; try fewer --threads elsewhere, a smaller scene or mode)",
         tag_, stats.render_stalls - warned_stalls_, stats.render_stalls, render_load);
+  }
+  if (stats.late_packets > warned_late_) {
+    spdlog::warn(
+        "streamer{}: {} packets sent more than 1 ms late ({} in total; send lateness p99 {:.0f} us, max {:.0f} "
+        "us): the host kept the send clock from running",
+        tag_, stats.late_packets - warned_late_, stats.late_packets, stats.lateness_p99_us, stats.max_lateness_us);
   }
   if (skipped > warned_skips_) {
     spdlog::warn("streamer{}: the host stalled the send clock for more than a frame: {} packets skipped ({} in total)",
@@ -75,6 +91,7 @@ void Streamer::warn_if_behind(double render_load) {
   warned_unposed_ = stats.columns_without_pose;
   warned_withheld_ = stats.withheld_packets;
   warned_stalls_ = stats.render_stalls;
+  warned_late_ = stats.late_packets;
   warned_skips_ = skipped;
   warned_errors_ = sender_->errors();
   last_warning_ns_ = now;

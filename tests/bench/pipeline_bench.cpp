@@ -48,35 +48,16 @@
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/record/recorder.h"
 #include "lidartwin/scene/scene.h"
+#include "raw_embree.h"
 #include "support/every_effect_chain.h"
 
 namespace {
 
 using namespace lidartwin;
-using Clock = std::chrono::steady_clock;
-
-// Wall time and the process's CPU time: on a shared machine the CPU-time rate (rays per CPU second
-// times the thread count) estimates what idle cores would do.
-struct Rate {
-  double wall_per_s = 0;
-  double cpu_per_s = 0;  // per CPU second, times threads
-};
-double cpu_seconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-class Stopwatch {
- public:
-  Rate rate(double items, int threads) const {
-    const double wall = std::chrono::duration<double>(Clock::now() - wall_).count();
-    return {items / wall, items / (cpu_seconds() - cpu_) * threads};
-  }
-
- private:
-  Clock::time_point wall_ = Clock::now();
-  double cpu_ = cpu_seconds();
-};
+using bench::Packing;
+using bench::parallel_columns;
+using bench::Rate;
+using bench::Stopwatch;
 
 const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
 
@@ -113,84 +94,13 @@ Pose column_pose(const PoseSource& poses, int f, int m, int w) {
   return poses.at(poses.start_s() + f / 10.0 + m / (10.0 * w));
 }
 
-// Runs task(i) for every index in [0, count) on `threads` threads, handing out 16 indices at a
-// time (one shared counter per index would cost the reference a contended atomic per column).
-void parallel_columns(int threads, int count, const std::function<void(int)>& task) {
-  constexpr int kGrain = 16;
-  std::atomic<int> next{0};
-  const auto work = [&] {
-    for (int b = next.fetch_add(kGrain); b < count; b = next.fetch_add(kGrain)) {
-      for (int c = b; c < std::min(b + kGrain, count); ++c) task(c);
-    }
-  };
-  std::vector<std::jthread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-}
-
-// How the prebuilt rays are packed: a column's 16 consecutive rows (DESIGN.md's reference), or as
-// ColumnCaster packs them, one row of 16 neighbouring columns (a RayStrip).
-enum class Packing { kColumnRows, kCasterStrips };
-
-// The world rays of `frames` frames, 16-ray packets (8 per 128-beam column), exactly the rays the
-// caster builds: pose at the column's time applied to the SDK rays (protocol doc 7.2).
 std::vector<RTCRay16> prebuilt_rays(const Setup& s, const PoseSource& poses, int frames, float tfar,
                                     Packing packing = Packing::kColumnRows) {
-  const int w = s.format().columns_per_frame, h = s.format().pixels_per_column, per_column = (h + 15) / 16;
-  const BeamGeometry geometry(s.profile.beams, w);
-  std::vector<RTCRay16> packets(static_cast<size_t>(frames) * static_cast<size_t>(w * per_column));
-  std::vector<int> cast_index(static_cast<size_t>(h));  // [row]: its place k in the caster's cast order
-  for (int k = 0; k < h; ++k) cast_index[static_cast<size_t>(geometry.cast_row(k))] = k;
-  for (int f = 0; f < frames; ++f) {
-    for (int m = 0; m < w; ++m) {
-      const Pose pose = column_pose(poses, f, m, w);
-      const Eigen::Matrix3f rotation = pose.rotation.toRotationMatrix().cast<float>();
-      const Eigen::Vector3f translation = pose.translation.cast<float>();
-      for (int r = 0; r < h; ++r) {
-        // kCasterStrips: columns 16g .. 16g + 15 share packets, packet k of the group holding
-        // row cast_row(k) of each, lane m % 16.
-        size_t index = static_cast<size_t>((f * w + m) * per_column + r / 16);
-        int i = r % 16;
-        if (packing == Packing::kCasterStrips) {
-          index = static_cast<size_t>((f * w + m / 16 * 16) * per_column + cast_index[static_cast<size_t>(r)]);
-          i = m % 16;
-        }
-        RTCRay16& p = packets[index];
-        const BeamRay& ray = geometry.ray(r, m);
-        const Eigen::Vector3f o = rotation * ray.origin_m + translation, d = rotation * ray.direction;
-        p.org_x[i] = o.x(), p.org_y[i] = o.y(), p.org_z[i] = o.z();
-        p.dir_x[i] = d.x(), p.dir_y[i] = d.y(), p.dir_z[i] = d.z();
-        p.tnear[i] = ray.range_offset_m, p.tfar[i] = tfar, p.time[i] = 0, p.mask[i] = ~0u;
-        p.id[i] = static_cast<unsigned>(r), p.flags[i] = 0;
-      }
-    }
-  }
-  return packets;
+  return bench::prebuilt_rays(s.profile.beams, s.format(), poses, {frames, 0.1}, tfar, packing);
 }
 
 Rate raw_packets(const Setup& s, const std::vector<RTCRay16>& packets, int threads) {
-  const int per_column = (s.format().pixels_per_column + 15) / 16;
-  const int columns = static_cast<int>(packets.size()) / per_column;
-  std::atomic<uint64_t> hits{0};
-  const Stopwatch watch;
-  parallel_columns(threads, columns, [&](int c) {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    alignas(64) int valid[16];
-    std::fill(valid, valid + 16, -1);
-    uint64_t column_hits = 0;
-    for (int k = 0; k < per_column; ++k) {
-      alignas(64) RTCRayHit16 rh;
-      std::memcpy(&rh.ray, &packets[static_cast<size_t>(c * per_column + k)], sizeof(RTCRay16));
-      std::fill(rh.hit.geomID, rh.hit.geomID + 16, RTC_INVALID_GEOMETRY_ID);
-      rtcIntersect16(valid, s.scene.embree_scene(), &context, &rh);
-      for (int i = 0; i < 16; ++i) column_hits += rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
-    }
-    hits.fetch_add(column_hits, std::memory_order_relaxed);
-  });
-  if (hits.load() == 0) std::fprintf(stderr, "warning: no hits\n");
-  return watch.rate(static_cast<double>(packets.size() * 16), threads);
+  return bench::raw_packets(s.scene, s.format().pixels_per_column, packets, threads);
 }
 
 Rate raw_single(const Setup& s, const std::vector<RTCRay16>& packets, int threads) {

@@ -16,6 +16,7 @@
 // and the daemon's RSS before and after are printed too.
 //   stream_bench [--duration 30] [--profile os1-128] [--mode 2048x10] [--udp-profile P]
 //                [--scene S --pose "x y z qx qy qz qw"] [--threads N] [--http-load N]
+//                [--serve-args "--spin-us 0 ..."] (more flags for serve)
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
@@ -24,6 +25,7 @@
 #include <iostream>
 #include <map>
 #include <regex>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -53,6 +55,7 @@ struct Flags {
   std::string pose;
   std::string threads = "0";
   int http_load = 0;  // wrk's connections; 0: none
+  std::vector<std::string> serve_args;
 };
 
 Flags parse_flags(int argc, char** argv) {
@@ -68,7 +71,10 @@ Flags parse_flags(int argc, char** argv) {
     else if (key == "--pose") flags.pose = value;
     else if (key == "--threads") flags.threads = value;
     else if (key == "--http-load") flags.http_load = std::stoi(value);
-    else throw std::runtime_error("unknown flag " + key);
+    else if (key == "--serve-args") {
+      std::istringstream words(value);
+      for (std::string word; words >> word;) flags.serve_args.push_back(word);
+    } else throw std::runtime_error("unknown flag " + key);
   }
   return flags;
 }
@@ -86,6 +92,7 @@ std::vector<std::string> daemon_args(const Flags& flags) {
   std::vector<std::string> args{"--profile", flags.profile, "--threads", flags.threads};
   if (!flags.scene.empty()) args.insert(args.end(), {"--scene", flags.scene});
   if (!flags.pose.empty()) args.insert(args.end(), {"--pose", flags.pose});
+  args.insert(args.end(), flags.serve_args.begin(), flags.serve_args.end());
   return args;
 }
 

@@ -70,9 +70,11 @@ class ForwardModel {
   size_t render(uint64_t frame, EncodedFrame& out) const { return render(frame, 0, packet_columns().size(), out); }
   // The same, calling ready(index) on the worker that encoded packet `index`, as soon as its bytes
   // and its columns in out are final: a writer can take packets while the rest still render, on
-  // the render threads themselves (`record`), instead of a thread of its own competing for cores.
+  // the render threads themselves (`record`), instead of a thread of its own competing for cores;
+  // the streamer publishes each packet to its send clock this way.
   using PacketReady = std::function<void(size_t index)>;
   size_t render(uint64_t frame, EncodedFrame& out, const PacketReady& ready) const;
+  size_t render(uint64_t frame, size_t begin, size_t end, EncodedFrame& out, const PacketReady& ready) const;
   // Whether packet `index` of a rendered frame has any observed column.
   bool packet_observed(const EncodedFrame& frame, size_t index) const;
   const PoseSource& poses() const;

@@ -30,7 +30,12 @@ struct StreamStats {
   uint64_t frames_sent = 0;
   uint64_t late_packets = 0;   // sent more than the lateness threshold after their deadline
   uint64_t render_stalls = 0;  // packets whose columns were not rendered in time
+  // Packets not sent at all: due more than a frame ago when the send clock got to them (the host
+  // held it up), so that a burst would not overflow the client's receive buffer.
+  uint64_t skipped_packets = 0;
   double max_lateness_us = 0.0;
+  double lateness_p50_us = 0.0;  // send lateness (sent - due) of every packet sent so far
+  double lateness_p99_us = 0.0;
   double render_load = 0.0;  // render time / real time over the last second (1.0 = saturated)
   // Live poses (docs/live-poses.md): columns in the window sent unobserved for want of a pose,
   // packets withheld for the same reason (timeout policy "standby"), and the latency from a

@@ -26,6 +26,7 @@ class StreamSession;
 struct StreamCounters;
 class GroundTruth;
 class FaultInjector;
+class BackgroundJobs;
 }  // namespace streamer_detail
 
 // The sensor's own faults a FaultPlan schedules (reset_at, standby_at, error_at): the streamer
@@ -43,10 +44,17 @@ struct StreamerOptions {
   // column_poses.tum (as `record` writes them).
   std::filesystem::path record_dir;
   int frames_ahead = 2;         // how far casting may run ahead of the send clock
-  double start_delay_s = 0.25;  // from a reinit to frame 0: time to cast the first packets
-  int render_nice = 0;          // nice value of the render-ahead worker (the send clock keeps 0)
+  double start_delay_s = 0.25;  // from a reinit to frame 0 (at least): time to cast the first packets
+  // Frame 0 starts on this grid: at frame_grid_origin_ns + k / fps on the host's steady clock, the
+  // first such instant start_delay_s after the reinit. A rig gives its sensors one origin, so that
+  // the packets of sensors in one mode fall due at the same instants and one wake-up of the rig's
+  // send clock sends them all (a wake-up costs far more CPU than a send, most of all on a VM).
+  int64_t frame_grid_origin_ns = 0;
+  int render_nice = 0;  // nice value of the render-ahead worker (the send clock keeps 0)
   // The send clock wakes this early and spins to each lidar deadline: a thread's wake-up takes
-  // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10).
+  // 50-100 us on a VM. Costs about spin_us x packets/s of CPU at most (10 % at 2048x10), so it
+  // spins only while the host's CPUs are not contended (streamer/host_load.h): on a full host the
+  // spin would be taken from rendering, its own or other daemons'.
   int spin_us = 100;
   // Live poses (docs/live-poses.md): > 0 casts each packet only this long before it is due, so the
   // newest pose reaches it (frames_ahead still bounds the buffers); 0 casts as far ahead as it can.
@@ -79,10 +87,12 @@ using ModelFactory = std::function<std::unique_ptr<ForwardModel>(const StreamCon
 // carries TAI ns, the same instant plus the time base's fixed offset.
 //
 // Lateness is also logged: a debug line every 10 s and an info line at stop(), "lateness p50 .. us,
-// p99 .. us, max .. us"; StreamStats carries late_packets, max_lateness_us, render_stalls and
-// render_load. lidar_frame_azimuth_offset reaches the packets through the served beam intrinsics
-// (the model casts with them); frames always start at m = 0. Not handled: IMU profiles other than
-// LEGACY (a warning; no IMU packets are sent).
+// p99 .. us, max .. us", and a warning (at most one per 5 s) when packets went out more than 1 ms
+// late, had to go out unrendered (render stalls) or were skipped; StreamStats carries the counts,
+// the lateness percentiles and render_load, per sensor (a rig's streamers each their own).
+// lidar_frame_azimuth_offset reaches the packets through the served beam intrinsics (the model
+// casts with them); frames always start at m = 0. Not handled: IMU profiles other than LEGACY (a
+// warning; no IMU packets are sent).
 class Streamer {
  public:
   // Throws InputError if the sending socket cannot be bound or the record directory cannot be
@@ -109,11 +119,17 @@ class Streamer {
  private:
   void switch_to(std::shared_ptr<const StreamConfig> config);
   void start_session(std::shared_ptr<const StreamConfig> config, int64_t start_steady_ns, uint64_t origin_ns);
+  std::shared_ptr<streamer_detail::StreamSession> build_session(const std::shared_ptr<const StreamConfig>& config,
+                                                                int64_t start_steady_ns, uint64_t origin_ns);
+  void land_session(std::shared_ptr<streamer_detail::StreamSession> session,
+                    const std::shared_ptr<const StreamConfig>& config);
   void start_paced_session();
   void stop_session();
+  void retire(std::shared_ptr<streamer_detail::StreamSession> session);
   void arm_stats_timer();
   void report_stats();
   void warn_if_behind(double render_load);
+  void follow_host_load();
 
   asio::io_context& io_;
   ModelFactory make_model_;
@@ -124,20 +140,26 @@ class Streamer {
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
   std::unique_ptr<streamer_detail::GroundTruth> ground_truth_;  // with record_dir
   asio::steady_timer stats_timer_;
+  int64_t spin_ns_;  // options_.spin_us, or 0 while the host is contended; io thread
   mutable std::mutex snapshot_mutex_;
   StreamStats snapshot_;                                     // guarded by snapshot_mutex_
   std::shared_ptr<const StreamConfig> config_;               // the one being streamed
   std::shared_ptr<streamer_detail::StreamSession> session_;  // null in STANDBY or when stopped
-  std::optional<uint64_t> lock_step_time_ns_;                // the newest simulation time, in lock-step
-  int64_t next_stats_ns_ = 0;                                // steady clock
+  uint64_t session_ticket_ = 0;                // the session being built, if building; a newer one cancels it
+  bool building_ = false;                      // a session is being built off the io thread
+  std::optional<uint64_t> lock_step_time_ns_;  // the newest simulation time, in lock-step
+  int64_t next_stats_ns_ = 0;                  // steady clock
   uint64_t stats_ticks_ = 0;
   uint64_t warned_stalls_ = 0;
+  uint64_t warned_late_ = 0;
   uint64_t warned_skips_ = 0;
   uint64_t warned_errors_ = 0;
   uint64_t warned_unposed_ = 0;
   uint64_t warned_withheld_ = 0;
   int64_t last_warning_ns_ = 0;
   bool stopped_ = false;
+  // Last: sessions it builds or retires are done with before the members above go.
+  std::unique_ptr<streamer_detail::BackgroundJobs> jobs_;
 };
 
 }  // namespace lidartwin

@@ -3,6 +3,7 @@
 // would, and stops it with SIGTERM. The HTTP port is discovered from the daemon's log line, so
 // tests can pass --http-port 0 and run in parallel without root. Header-only and free of gtest, so
 // the streaming benchmark uses it too.
+#include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
@@ -39,7 +40,7 @@ class Daemon {
   Daemon(std::string address, int http_port, const std::vector<std::string>& args,
          std::chrono::seconds timeout = std::chrono::seconds(30))
       : address_(std::move(address)) {
-    static int counter = 0;
+    static std::atomic<int> counter{0};  // rig_bench starts daemons from several threads
     log_path_ = scratch_dir() / ("daemon-" + address_ + "-" + std::to_string(++counter) + ".log");
     std::vector<std::string> argv{LIDARTWIN_BINARY, "serve",       "--address",
                                   address_,         "--http-port", std::to_string(http_port)};
@@ -53,7 +54,7 @@ class Daemon {
   Daemon(Rig, std::string address, const std::vector<std::string>& args,
          std::chrono::seconds timeout = std::chrono::seconds(30))
       : address_(std::move(address)), ready_prefix_("answering on http://" + address_) {
-    static int counter = 0;
+    static std::atomic<int> counter{0};
     log_path_ = scratch_dir() / ("rig-" + address_ + "-" + std::to_string(++counter) + ".log");
     std::vector<std::string> argv{LIDARTWIN_BINARY, "serve"};
     argv.insert(argv.end(), args.begin(), args.end());

@@ -59,6 +59,8 @@ class UdpSocket {
                                          : ntohs(reinterpret_cast<sockaddr_in*>(&address)->sin_port);
   }
 
+  int fd() const { return fd_; }  // for poll() over several sockets
+
   std::optional<Datagram> receive(std::chrono::milliseconds timeout) {
     pollfd p{fd_, POLLIN, 0};
     if (poll(&p, 1, static_cast<int>(timeout.count())) <= 0) return std::nullopt;
