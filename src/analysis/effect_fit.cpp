@@ -69,11 +69,20 @@ FitRows subsample(const PixelTable& t, size_t max_pixels, WorkerPool* pool) {
   size_t hits = 0;
   for (const float r : t.ideal_range_m) hits += r > 0.0f;
   const size_t stride = std::max<size_t>(1, hits / std::max<size_t>(max_pixels, 1));
-  FitRows rows{{}, pool};
+  FitRows rows{{}, pool, {}};
   size_t seen = 0;
   for (size_t i = 0; i < t.size(); ++i) {
     if (t.ideal_range_m[i] > 0.0f && seen++ % stride == 0) rows.index.push_back(i);
   }
+  rows.inputs.resize(rows.size());
+  for_each_pixel_chunk(rows.size(), pool, [&](size_t first, size_t last) {
+    for (size_t k = first; k < last; ++k) {
+      const size_t i = rows[k];
+      const ColumnContext context = t.context_of(i);
+      rows.inputs[k] = {t.ideal_of(i),  t.model_inputs_of(i), t.range_m[i],
+                        context.column, context.frame,        context.time_s};
+    }
+  });
   return rows;
 }
 
@@ -88,8 +97,9 @@ SharedPrefix::SharedPrefix(const PixelTable& t, const FitRows& rows, const Effec
   const auto& effects = chain.effects();
   for_each_pixel_chunk(rows.size(), rows.pool, [&](size_t first, size_t last) {
     for (size_t k = first; k < last; ++k) {
-      const IdealReturn ideal = t.ideal_of(rows[k]);
-      const ColumnContext context = t.context_of(rows[k]);
+      const FitRow& row = rows.inputs[k];
+      const IdealReturn& ideal = row.ideal;
+      const ColumnContext context = row.context(t);
       Prediction& p = predictions_[k];
       p.p_detect = ideal.hit() ? 1.0 : 0.0;  // as EffectChain::predict starts
       for (size_t e = 0; e < count_; ++e) effects[e]->predict(ideal, context, p);
@@ -102,19 +112,18 @@ namespace {
 // Row k's NLL under a chain whose first prefix.count() effects predicted prefix[k].
 double row_nll(const PixelTable& t, const FitRows& rows, size_t k, const EffectChain& chain, const SharedPrefix& prefix,
                const PatternAdjustment* adjust) {
-  const size_t i = rows[k];
+  const FitRow& row = rows.inputs[k];
+  const ColumnContext context = row.context(t);
   Prediction p;
   if (prefix.count() == 0) {
-    p = chain.predict(t.ideal_of(i), t.context_of(i));
+    p = chain.predict(row.ideal, context);
   } else {
     p = prefix[k];
-    const IdealReturn ideal = t.ideal_of(i);
-    const ColumnContext context = t.context_of(i);
     const auto& effects = chain.effects();
-    for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(ideal, context, p);
+    for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(row.ideal, context, p);
   }
-  if (adjust) adjust->apply(i, p);
-  return pixel_nll(t.model_for(i, p), t.range_m[i]);  // the table's reference rules (PixelTable::model_for)
+  if (adjust) adjust->apply(rows[k], p);
+  return pixel_nll(t.model_for(row.model, p), row.range_m);  // the table's reference rules (PixelTable::model_for)
 }
 
 }  // namespace

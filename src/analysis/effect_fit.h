@@ -42,9 +42,29 @@ std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise);
 // The pixels a fit scores (rows of the table), and the workers that sum their likelihood: each
 // evaluation is summed in fixed chunks of rows, added in order, so the sum is the same whatever
 // the pool's size (none: the calling thread alone).
+//
+// Each row's inputs are gathered from the table once, in row order: an evaluation reads them
+// front to back, where from the table (an array per input, the rows every k-th pixel) each input
+// costs its own cache line every few rows, and memory traffic, not arithmetic, set the pace.
+struct FitRow {
+  IdealReturn ideal;
+  PixelTable::ModelInputs model;
+  float range_m = 0.0f;  // measured
+  uint32_t column = 0;
+  uint64_t frame = 0;
+  double time_s = 0.0;  // since the capture's start, as context_of gives it
+  ColumnContext context(const PixelTable& t) const {
+    ColumnContext c = t.context;
+    c.frame = frame;
+    c.column = column;
+    c.time_s = time_s;
+    return c;
+  }
+};
 struct FitRows {
   std::vector<size_t> index;
   WorkerPool* pool = nullptr;
+  std::vector<FitRow> inputs;  // per entry of index
   size_t size() const { return index.size(); }
   size_t operator[](size_t k) const { return index[k]; }
   auto begin() const { return index.begin(); }

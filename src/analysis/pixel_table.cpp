@@ -295,16 +295,29 @@ ColumnContext PixelTable::context_of(size_t i) const {
   return c;
 }
 
+PixelTable::ModelInputs PixelTable::model_inputs_of(size_t i) const {
+  ModelInputs in{ideal_range_m[i], step_m[i], window_max_m[i]};
+  if (reference != Reference::kScene) {
+    in.reference_scale = reference_scale[i];
+    in.reference_variance_m2 = reference_variance_m2[i];
+  }
+  return in;
+}
+
 RangeModel PixelTable::model_for(size_t i, Prediction prediction) const {
+  return model_for(model_inputs_of(i), prediction);
+}
+
+RangeModel PixelTable::model_for(const ModelInputs& pixel, Prediction prediction) const {
   if (reference != Reference::kScene) {
     prediction.bias_m = 0.0;  // the reference is the sensor's own: it carries its mean bias
     if (reference == Reference::kMap) prediction.p_detect = 1.0;  // only returns are in a map table
   }
-  RangeModel model = range_model(prediction, static_cast<double>(ideal_range_m[i]), static_cast<double>(step_m[i]),
-                                 static_cast<double>(window_max_m[i]));
+  RangeModel model = range_model(prediction, static_cast<double>(pixel.ideal_range_m),
+                                 static_cast<double>(pixel.step_m), static_cast<double>(pixel.window_max_m));
   if (reference != Reference::kScene && model.sigma_m > 0.0) {
-    const double scale = static_cast<double>(reference_scale[i]);
-    const double add = static_cast<double>(reference_variance_m2[i]);
+    const double scale = static_cast<double>(pixel.reference_scale);
+    const double add = static_cast<double>(pixel.reference_variance_m2);
     const auto adjusted = [&](double sigma) { return std::sqrt(sigma * sigma * scale + add); };
     if (model.partner_sigma_m > 0.0) model.partner_sigma_m = adjusted(model.partner_sigma_m);
     model.sigma_m = adjusted(model.sigma_m);

@@ -100,6 +100,16 @@ struct PixelTable {
   // with the reference's rules applied (see Reference). Every prediction the analysis scores goes
   // through here, the table's own and every refit's.
   RangeModel model_for(size_t i, Prediction prediction) const;
+  // What model_for reads of a pixel besides the prediction: the fits gather it once per fitted row.
+  struct ModelInputs {
+    float ideal_range_m = 0.0f;
+    float step_m = 0.0f;
+    float window_max_m = 0.0f;
+    float reference_scale = 1.0f;        // read only when the reference is not the scene
+    float reference_variance_m2 = 0.0f;  // likewise
+  };
+  ModelInputs model_inputs_of(size_t i) const;
+  RangeModel model_for(const ModelInputs& pixel, Prediction prediction) const;
   // Predicts pixel i with the chain and stores it (model_for's model).
   void predict(size_t i, const EffectChain& chain);
   // The residual's share of the degrees of freedom (1 but for temporal means: 1 - 1/n).
