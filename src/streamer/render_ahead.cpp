@@ -127,7 +127,10 @@ void RenderAhead::render_frame(uint64_t frame, Slot& slot) {
     if (options_.cast_ahead_ns > 0 && !wait_until(deadline_ns(frame, begin) - options_.cast_ahead_ns)) return;
     if (abandoned(frame)) return;
     begin = first_in_time(frame, begin, end);
-    if (begin == end) continue;
+    if (begin == end) {
+      packet_ns_ -= packet_ns_ / 8;  // no cast to measure: let the estimate fall back towards the truth
+      continue;
+    }
     const PoseFreshness freshness = model_.poses().freshness();  // before the cast: what it can use
     for (size_t i = begin; i < end; ++i) slot.freshness[i] = freshness;
     const int64_t began = steady_now_ns();
@@ -137,7 +140,7 @@ void RenderAhead::render_frame(uint64_t frame, Slot& slot) {
     const int64_t took = steady_now_ns() - began;
     unposed_columns_.fetch_add(unposed, std::memory_order_relaxed);
     busy_ns_.fetch_add(static_cast<uint64_t>(took), std::memory_order_relaxed);
-    packet_ns_ = took / static_cast<int64_t>(end - begin);
+    packet_ns_ = (3 * packet_ns_ + took / static_cast<int64_t>(end - begin)) / 4;
   }
 }
 
