@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <optional>
 
 #include "effects/builtin_effects.h"
@@ -91,6 +92,31 @@ struct Straddle {
   double partner_wins_above() const { return full / (full + partner); }
 };
 
+// predict's quadrature: the shares w_k = share_beyond(delta_k) at the kQuadrature midpoints delta_k
+// of (0, spacing). They are 64 erfc per pixel at an edge, which made mixed pixels a fifth of a
+// diagnosis' time (they rerun at every likelihood evaluation of a fit placed before them), yet
+// depend on the beam spacing and the footprint alone, which a sensor's beam pairs share: each
+// thread keeps the last ones per (spacing, sigma), direct-mapped. A hit returns exactly the values a
+// fresh computation would, so predictions do not depend on the cache or the threading.
+using QuadratureShares = std::array<double, kQuadrature>;
+const QuadratureShares& quadrature_shares(const Straddle& s) {
+  struct Entry {
+    double spacing_rad = -1.0, sigma_rad = -1.0;
+    QuadratureShares w{};
+  };
+  constexpr size_t kEntries = 256;
+  thread_local std::array<Entry, kEntries> cache;
+  const size_t slot = (std::hash<double>{}(s.spacing_rad) ^ (std::hash<double>{}(s.sigma_rad) * 31u)) % kEntries;
+  Entry& e = cache[slot];
+  if (e.spacing_rad != s.spacing_rad || e.sigma_rad != s.sigma_rad) {
+    for (int k = 0; k < kQuadrature; ++k)
+      e.w[static_cast<size_t>(k)] = s.share_beyond((k + 0.5) / kQuadrature * s.spacing_rad);
+    e.spacing_rad = s.spacing_rad;
+    e.sigma_rad = s.sigma_rad;
+  }
+  return e.w;
+}
+
 class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters> {
  public:
   using P = MixedPixelsParameters;
@@ -140,8 +166,7 @@ class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters
     const double step = s->r_q - s->r_p;
     if (s->merged) {  // moments of the merged range and of the signal's share, by quadrature
       double f1 = 0.0, f2 = 0.0, gain = 0.0;
-      for (int k = 0; k < kQuadrature; ++k) {
-        const double w = s->share_beyond((k + 0.5) / kQuadrature * s->spacing_rad);
+      for (const double w : quadrature_shares(*s)) {
         const double p = s->power_p(w), q = s->power_q(w);
         const double f = q / (p + q);
         f1 += f / kQuadrature, f2 += f * f / kQuadrature, gain += (p + q) / s->full / kQuadrature;
@@ -164,8 +189,7 @@ class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters
     prediction.p_second = s->probability_w_in(std::nextafter(t, 1.0), std::min(0.5, 1.0 - fraction)) +
                           s->probability_w_in(std::max(partner_second_from, 0.0), std::min(t, 0.5));
     double gain = 0.0;
-    for (int k = 0; k < kQuadrature; ++k) {
-      const double w = s->share_beyond((k + 0.5) / kQuadrature * s->spacing_rad);
+    for (const double w : quadrature_shares(*s)) {
       gain += std::max(s->power_p(w), s->power_q(w)) / s->full / kQuadrature;
     }
     prediction.signal_photons *= gain;
