@@ -157,6 +157,36 @@ TEST(ScorePixel, WhatTheModelRulesOutCostsAFiniteVisibleAmount) {
   EXPECT_EQ(score_pixel(nothing_there, 0.0, 0.5).nll, 0.0);
 }
 
+// pixel_nll, what the fits evaluate, takes the log of the common case's probability in closed form
+// (no exp, one log); score_pixel, what compare reports, computes it in full. They must agree to
+// rounding wherever either is used: across sigmas narrow and wide against the bin, returns near
+// and far out (to where the probability is floored), low and certain detection, and the cases the
+// closed form leaves to the full computation (outliers, a partner, a window cutting the Gaussian).
+TEST(PixelNll, EqualsScorePixelsNllInEveryCase) {
+  size_t compared = 0;
+  for (const double sigma : {0.002, 0.009, 0.0101, 0.03, 0.5}) {
+    for (const double p_detect : {1.0, 0.93, 1e-3}) {
+      std::vector<RangeModel> models = {model(20.0, sigma, 0.001, p_detect)};
+      models.push_back(models.front());
+      models.back().outlier_mix = 0.01;
+      models.push_back(with_partner(models.front(), 0.2, 0.3, 0.0));
+      models.push_back(models.front());
+      models.back().window_max_m = 20.0 + 3.0 * sigma;  // the window cuts the Gaussian
+      for (const RangeModel& m : models) {
+        for (double z = -40.0; z <= 40.0; z += 0.37) {
+          const double measured = std::round((m.mean_m + z * sigma) / m.step_m) * m.step_m;
+          if (measured <= 0.0) continue;
+          const double full = score_pixel(m, measured, 0.5).nll;
+          EXPECT_NEAR(pixel_nll(m, measured), full, 1e-12 * std::max(1.0, std::abs(full)))
+              << "sigma " << sigma << " p_detect " << p_detect << " z " << z;
+          ++compared;
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 10000u);
+}
+
 TEST(RangeModel, QuantizationVarianceFoldedByTheChainIsTakenBackOut) {
   Prediction p;
   p.variance_m2 = 0.01 * 0.01 + 0.008 * 0.008 / 12.0;
