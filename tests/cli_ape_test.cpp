@@ -10,6 +10,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+namespace cli_ape_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -66,3 +68,5 @@ TEST(CliApe, PrintsEvosStatisticsAndWritesTheJsonAndThePlot) {
 }
 
 }  // namespace
+
+}  // namespace cli_ape_test

@@ -17,7 +17,7 @@
 #include "lidartwin/effects/effect_chain.h"
 #include "support/table_profile.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_compare_beam_calibration_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -78,4 +78,4 @@ TEST(CompareBeamCalibration, TheDiagnosisNamesPerBeamOffsetsAndFitsEveryBeam) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_compare_beam_calibration_test

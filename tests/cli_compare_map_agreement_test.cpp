@@ -29,6 +29,8 @@
 #include "support/cli_run.h"
 #include "support/table_profile.h"
 
+namespace cli_compare_map_agreement_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -294,3 +296,5 @@ TEST_F(MapAgreement, ScenesAndMapsSpreadsFailingRegionsAndDiagnosesAgree) {
 }
 
 }  // namespace
+
+}  // namespace cli_compare_map_agreement_test

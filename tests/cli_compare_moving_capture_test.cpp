@@ -22,6 +22,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+namespace cli_compare_moving_capture_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -295,3 +297,5 @@ TEST(CompareMovingIndependentCapture, EachWallsReflectivityReachesTheScenesMater
 }
 
 }  // namespace
+
+}  // namespace cli_compare_moving_capture_test

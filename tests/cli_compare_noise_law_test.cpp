@@ -23,7 +23,7 @@
 #include "support/cli_run.h"
 #include "support/table_profile.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_compare_noise_law_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -289,4 +289,4 @@ TEST(CompareNoiseLaw, ALinearSpreadAgainstTheDatasheetTableReplacesTheTableByThe
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_compare_noise_law_test

@@ -18,6 +18,8 @@
 
 #include "support/table_profile.h"
 
+namespace cli_compare_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -1084,3 +1086,5 @@ TEST(CompareIndependentCapture, TheDiagnosisRefitsItsRadiometryThenNamesTheSigna
 }
 
 }  // namespace
+
+}  // namespace cli_compare_test

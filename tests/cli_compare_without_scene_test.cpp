@@ -16,6 +16,8 @@
 #include "support/cli_run.h"
 #include "support/table_profile.h"
 
+namespace cli_compare_without_scene_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -335,3 +337,5 @@ TEST(CompareMapIndependentCapture, MapModeNamesTheHiddenSignalDependentPrecision
 }
 
 }  // namespace
+
+}  // namespace cli_compare_without_scene_test

@@ -7,6 +7,8 @@
 
 #include "support/cli_run.h"
 
+namespace cli_effects_test {
+
 namespace {
 
 using lidartwin::test::run_cli;
@@ -71,3 +73,5 @@ TEST(CliEffects, PointsHelpDescribesTheFlatXyzArray) {
 }
 
 }  // namespace
+
+}  // namespace cli_effects_test

@@ -18,6 +18,8 @@
 #include "support/cli_run.h"
 #include "support/table_profile.h"
 
+namespace cli_osf_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -259,3 +261,5 @@ TEST(CliOsf, APcapStillNeedsItsMetadata) {
 }
 
 }  // namespace
+
+}  // namespace cli_osf_test

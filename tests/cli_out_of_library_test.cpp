@@ -35,7 +35,7 @@
 #include "lidartwin/scene/scene.h"
 #include "support/table_profile.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_out_of_library_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -382,4 +382,4 @@ TEST_F(OutOfLibrary, AFewWeakChannelsAreTracedToTheirBeamsThenWrittenFittedAndTh
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_out_of_library_test

@@ -12,6 +12,8 @@
 
 #include "support/cli_run.h"
 
+namespace cli_pcap_info_test {
+
 namespace {
 
 using lidartwin::test::CliRun;
@@ -129,3 +131,5 @@ TEST(CliPcapInfo, MissingOrCorruptInputExitsWith2) {
 }
 
 }  // namespace
+
+}  // namespace cli_pcap_info_test

@@ -22,7 +22,7 @@
 
 #include "support/record_capture.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_baseline_cpu_test {
 namespace {
 
 const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
@@ -109,4 +109,4 @@ TEST_F(RecordOnBaselineCpu, NehalemRecordsTheSameCaptureByteForByte) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_baseline_cpu_test

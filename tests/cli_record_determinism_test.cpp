@@ -13,7 +13,7 @@
 #include "support/every_effect_chain.h"
 #include "support/record_capture.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_determinism_test {
 namespace {
 
 const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
@@ -101,4 +101,4 @@ TEST_F(RecordDeterminism, AnotherSeedGivesOtherNoise) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_determinism_test

@@ -16,6 +16,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_false_alarms_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -106,3 +108,5 @@ TEST(RecordFalseAlarms, IsolatedPointsAppearWhereNothingReturnedAtTheAmbientRate
 }
 
 }  // namespace
+
+}  // namespace cli_record_false_alarms_test

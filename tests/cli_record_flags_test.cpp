@@ -11,7 +11,7 @@
 
 #include "support/record_capture.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_flags_test {
 namespace {
 
 using ::testing::HasSubstr;
@@ -64,4 +64,4 @@ TEST(RecordFlags, CliChecksNameTheFlag) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_flags_test

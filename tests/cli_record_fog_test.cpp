@@ -13,6 +13,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_fog_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -85,3 +87,5 @@ TEST(RecordFog, SignalFallsExponentiallyWithRangeAndSoftReturnsComeEarly) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_fog_test

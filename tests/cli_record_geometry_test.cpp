@@ -18,7 +18,7 @@
 #include "support/record_capture.h"
 #include "support/surface_distance.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_geometry_test {
 namespace {
 
 const std::filesystem::path kSource = LIDARTWIN_SOURCE_DIR;
@@ -273,4 +273,4 @@ TEST_F(RecordGeometry, MovingSensorUsesEachColumnsPose) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_geometry_test

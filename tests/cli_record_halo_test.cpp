@@ -14,6 +14,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_halo_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -95,3 +97,5 @@ TEST(RecordHalo, ReturnsAtTheRetroreflectorsRangeBesideItInItsColumn) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_halo_test

@@ -22,7 +22,7 @@
 #include "lidartwin/pcap/pcap.h"
 #include "support/record_capture.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_interrupt_test {
 namespace {
 
 using ::testing::HasSubstr;
@@ -126,4 +126,4 @@ TEST(RecordDiskFull, SaysWhichFileAndWhatWasWrittenStaysReadable) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_interrupt_test

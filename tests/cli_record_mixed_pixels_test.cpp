@@ -15,6 +15,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_mixed_pixels_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -120,3 +122,5 @@ TEST(RecordMixedPixels, SecondReturnsLieAtDepthEdgesAtTheOtherSurfacesRange) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_mixed_pixels_test

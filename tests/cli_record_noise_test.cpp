@@ -15,6 +15,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_noise_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -146,3 +148,5 @@ TEST(RecordNoise, Os1PiecewiseProfileReproducesTheDatasheetTable) {
   const auto law = table_law(intervals, {0.007, 0.01, 0.02, 0.05});
   expect_bins_match(residual_bins("os1-32", intervals, law, 0.3, 100.0), 3, "os1-32 Table I");
 }
+
+}  // namespace cli_record_noise_test

@@ -16,7 +16,7 @@
 #include "lidartwin/pose/pose.h"
 #include "support/pose_inverse.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_rig_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -92,4 +92,4 @@ TEST(RecordRig, ABadSensorIsRefusedBeforeAnythingIsRecorded) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_rig_test

@@ -17,6 +17,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_shipped_profile_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -136,3 +138,5 @@ TEST(ShippedProfileRecord, DualCapturesCarrySecondReturnsAtRealRates) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_shipped_profile_test

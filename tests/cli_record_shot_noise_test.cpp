@@ -13,6 +13,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_shot_noise_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -96,3 +98,5 @@ TEST(RecordShotNoise, SignalVariesFrameToFrameAsExcessNoiseTimesPhotons) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_shot_noise_test

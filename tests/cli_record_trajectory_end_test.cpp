@@ -14,7 +14,7 @@
 #include "lidartwin/pose/pose.h"
 #include "support/cli_run.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_record_trajectory_end_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -80,4 +80,4 @@ TEST(RecordTrajectoryEnd, ABadValueIsRefusedNamingTheFlag) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_record_trajectory_end_test

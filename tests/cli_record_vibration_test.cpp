@@ -15,6 +15,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_vibration_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -90,3 +92,5 @@ TEST(RecordVibration, WholeColumnsMoveTogetherBySpreadOfTheJitter) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_vibration_test

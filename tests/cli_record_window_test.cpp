@@ -16,6 +16,8 @@
 
 #include "support/record_capture.h"
 
+namespace cli_record_window_test {
+
 namespace fs = std::filesystem;
 using lidartwin::ChannelField;
 using lidartwin::Scan;
@@ -102,3 +104,5 @@ TEST(RecordWindow, OnlyTheColumnsInItsSectorChange) {
 }
 
 }  // namespace
+
+}  // namespace cli_record_window_test

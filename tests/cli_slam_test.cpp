@@ -17,6 +17,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+namespace cli_slam_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -65,3 +67,5 @@ TEST(CliSlam, AnIdealSensorTracksHalfTheYardLapToCentimetresWhenDeskewed) {
 }
 
 }  // namespace
+
+}  // namespace cli_slam_test

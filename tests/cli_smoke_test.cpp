@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+namespace cli_smoke_test {
+
 TEST(Cli, PrintsHelpWithoutArguments) {
   std::string output;
   FILE* pipe = popen(LIDARTWIN_BINARY " 2>&1", "r");
@@ -14,3 +16,5 @@ TEST(Cli, PrintsHelpWithoutArguments) {
   EXPECT_EQ(pclose(pipe), 0);
   EXPECT_NE(output.find("virtual Ouster lidar"), std::string::npos) << output;
 }
+
+}  // namespace cli_smoke_test

@@ -14,7 +14,7 @@
 #include "support/cli_run.h"
 #include "support/record_capture.h"
 
-namespace lidartwin {
+namespace lidartwin::cli_unit_twin_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -172,4 +172,4 @@ TEST(UnitTwinInput, RefusesAFileWithoutAProductLine) {
 }
 
 }  // namespace
-}  // namespace lidartwin
+}  // namespace lidartwin::cli_unit_twin_test

@@ -21,7 +21,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::bad_requests_test {
 namespace {
 
 // Kernel arrival times of every lidar datagram (the daemon's send times, whatever the test
@@ -116,4 +116,4 @@ TEST(BadRequests, StreamGoesOnAndConfigIsUnchanged) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::bad_requests_test

@@ -20,7 +20,7 @@
 #include "e2e/support/udp_socket.h"
 #include "lidartwin/packet/lidar_packet.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::fault_injection_test {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -324,4 +324,4 @@ TEST(FaultInjection, ABadFaultFlagIsRefusedNamingItsKey) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::fault_injection_test

@@ -42,7 +42,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::faults_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -354,4 +354,4 @@ TEST(Faults, ASlowClientHoldingManyConnectionsBlocksNeitherOtherClientsNorTheStr
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::faults_test

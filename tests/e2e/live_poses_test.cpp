@@ -23,7 +23,7 @@
 #include "support/record_capture.h"
 #include "support/test_scene.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::live_poses_test {
 namespace {
 
 using nlohmann::json;
@@ -461,4 +461,4 @@ INSTANTIATE_TEST_SUITE_P(Speeds, LockStep, ::testing::Values(0.3, 3.0), [](const
 });
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::live_poses_test

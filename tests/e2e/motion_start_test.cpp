@@ -18,7 +18,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::motion_start_test {
 namespace {
 
 // x from -1 to +1 in 0.45 s; frames 0.1 s apart see it 0.44 m apart.
@@ -106,4 +106,4 @@ TEST(MotionStart, AClientThatNeverReinitializesStartsItByReadingTheMetadata) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::motion_start_test

@@ -26,7 +26,7 @@
 #include "lidartwin/pose/pose.h"
 #include "support/pose_inverse.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::multicast_poses_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -207,4 +207,4 @@ TEST(MulticastPoses, AGroupThatCannotBeJoinedIsRefusedNamingIt) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::multicast_poses_test

@@ -28,7 +28,7 @@
 #include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/packet/lidar_packet.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::one_clock_test {
 namespace {
 
 constexpr int64_t kLidarPeriodNs = 3'125'000;  // 512x10, 16 columns per packet: 16 / 5120 s
@@ -172,4 +172,4 @@ TEST_F(OneClock, PacketsTimeEndpointsAndTelemetryAgreeInInternalOscAndPtp) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::one_clock_test

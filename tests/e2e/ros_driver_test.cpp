@@ -12,7 +12,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::ros_driver_test {
 namespace {
 
 // What the driver's poll loop sees until the first packet of a different length (6 in 2.4 (e)).
@@ -56,4 +56,4 @@ TEST(RosDriver, ReinitWithANewLidarModeRestartsTheStream) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::ros_driver_test

@@ -14,7 +14,7 @@
 #include "e2e/support/udp_socket.h"
 #include "lidartwin/packet/imu_packet.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::sdk_init_client_test {
 namespace {
 
 using Case = std::tuple<std::string, std::string>;  // lidar_mode, udp_profile_lidar
@@ -87,4 +87,4 @@ TEST(InitClientImu, ImuPacketsArriveAtOneHundredHertz) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::sdk_init_client_test

@@ -12,7 +12,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::sdk_packet_source_test {
 namespace {
 
 TEST(SensorPacketSource, ReceivesCompleteScansFromTheSensorsAddress) {
@@ -69,4 +69,4 @@ TEST(SensorPacketSource, TimestampsFollowTheTimestampMode) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::sdk_packet_source_test

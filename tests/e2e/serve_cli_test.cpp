@@ -21,7 +21,7 @@
 #include "lidartwin/pose/pose.h"
 #include "support/record_capture.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::serve_cli_test {
 namespace {
 
 // The room's flags, less the one a case replaces (CLI11 refuses a flag given twice).
@@ -218,4 +218,4 @@ TEST(ServeSignals, SigtermStopsTheDaemonWithExitCodeZero) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::serve_cli_test

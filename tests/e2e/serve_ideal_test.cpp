@@ -13,7 +13,7 @@
 #include "e2e/support/udp_socket.h"
 #include "support/record_capture.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::serve_ideal_test {
 namespace {
 
 // The ranges of every pixel of one frame of `record --ideal` of the room (512x10, os1-32).
@@ -73,4 +73,4 @@ TEST(ServeIdeal, WithoutTheFlagTheRangesCarryNoise) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::serve_ideal_test

@@ -16,7 +16,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::trajectory_end_test {
 namespace {
 
 struct Stream {
@@ -122,4 +122,4 @@ TEST(TrajectoryEnd, BadValuesAreRefusedNamingTheFlag) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::trajectory_end_test

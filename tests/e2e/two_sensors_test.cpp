@@ -14,7 +14,7 @@
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::two_sensors_test {
 namespace {
 
 struct Client {
@@ -78,4 +78,4 @@ TEST(TwoSensors, SecondSensorOnATakenPortExitsWithOneClearLine) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::two_sensors_test

@@ -21,7 +21,7 @@
 #include "e2e/support/udp_socket.h"
 #include "lidartwin/packet/data_format.h"
 
-namespace lidartwin::e2e {
+namespace lidartwin::e2e::unit_twin_test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -199,4 +199,4 @@ TEST(UnitTwinPackets, CarryTheUnitsSerialNumber) {
 }
 
 }  // namespace
-}  // namespace lidartwin::e2e
+}  // namespace lidartwin::e2e::unit_twin_test
