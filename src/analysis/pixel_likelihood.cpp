@@ -111,14 +111,14 @@ MixtureEntropy mixture_entropy(const RangeModel& m) {
 // needs no exp and one log instead of two: -ln P = c^2 / 2 + ln sqrt(2 pi) - ln(p_detect h (1 + ...)),
 // the same value to rounding (and no underflow of phi far out). Where it exceeds -ln(kImpossible)
 // the range's probability may be floored (kImpossible * uniform): the full computation decides.
-std::optional<double> narrow_bin_nll(const RangeModel& m, double measured_range_m, double half) {
+std::optional<double> narrow_bin_nll(const RangeModel& m, double measured_range_m) {
   if (m.outlier_mix > 0.0 || m.partner_mix > 0.0) return std::nullopt;
-  if (!((m.window_min_m - m.mean_m) / m.sigma_m < -kWholeZ && (m.window_max_m - m.mean_m) / m.sigma_m > kWholeZ)) {
+  const double inverse_sigma = 1.0 / m.sigma_m;  // one division where the full path takes six
+  if (!((m.window_min_m - m.mean_m) * inverse_sigma < -kWholeZ &&
+        (m.window_max_m - m.mean_m) * inverse_sigma > kWholeZ)) {
     return std::nullopt;
   }
-  const double a = (measured_range_m - half - m.mean_m) / m.sigma_m;
-  const double b = (measured_range_m + half - m.mean_m) / m.sigma_m;
-  const double h = b - a, c = 0.5 * (a + b);
+  const double h = m.step_m * inverse_sigma, c = (measured_range_m - m.mean_m) * inverse_sigma;
   if (!(h > 0.0 && h <= kNarrowZ && std::abs(c) * h <= 0.5)) return std::nullopt;
   const double c2 = c * c, h2 = h * h;
   const double corrected = h * (1.0 + (c2 - 1.0) * h2 / 24.0 + (c2 * c2 - 6.0 * c2 + 3.0) * h2 * h2 / 1920.0);
@@ -195,11 +195,13 @@ double partner_share(const RangeModel& m) {
 
 double pixel_nll(const RangeModel& m, double measured_range_m) {
   if (measured_range_m <= 0.0) return -std::log(std::max(1.0 - m.p_detect, kImpossible));
+  if (m.p_detect >= kImpossible && m.sigma_m > 0.0) {
+    if (const std::optional<double> nll = narrow_bin_nll(m, measured_range_m)) return *nll;
+  }
   const double width = std::max(m.window_max_m - m.window_min_m, m.step_m);
   const double uniform = std::min(1.0, m.step_m / width);
   if (m.p_detect < kImpossible || m.sigma_m <= 0.0) return -std::log(kImpossible) - std::log(uniform);
   const double half = 0.5 * m.step_m;
-  if (const std::optional<double> nll = narrow_bin_nll(m, measured_range_m, half)) return *nll;
   const double gaussian =
       gaussian_interval(m, measured_range_m - half, measured_range_m + half, window_mass(m, m.mean_m));
   const double p_range = (1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform;
