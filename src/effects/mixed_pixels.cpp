@@ -18,6 +18,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <memory>
 #include <optional>
 
 #include "effects/builtin_effects.h"
@@ -104,10 +105,11 @@ const QuadratureShares& quadrature_shares(const Straddle& s) {
     double spacing_rad = -1.0, sigma_rad = -1.0;
     QuadratureShares w{};
   };
-  constexpr size_t kEntries = 256;
-  thread_local std::array<Entry, kEntries> cache;
+  constexpr size_t kEntries = 256;  // 132 KiB, allocated by the threads that predict (not in every thread's TLS)
+  thread_local std::unique_ptr<std::array<Entry, kEntries>> cache;
+  if (!cache) cache = std::make_unique<std::array<Entry, kEntries>>();
   const size_t slot = (std::hash<double>{}(s.spacing_rad) ^ (std::hash<double>{}(s.sigma_rad) * 31u)) % kEntries;
-  Entry& e = cache[slot];
+  Entry& e = (*cache)[slot];
   if (e.spacing_rad != s.spacing_rad || e.sigma_rad != s.sigma_rad) {
     for (int k = 0; k < kQuadrature; ++k)
       e.w[static_cast<size_t>(k)] = s.share_beyond((k + 0.5) / kQuadrature * s.spacing_rad);
