@@ -8,6 +8,8 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <span>
+#include <vector>
 
 #include <fmt/format.h>
 #include <Eigen/Dense>
@@ -109,9 +111,9 @@ SharedPrefix::SharedPrefix(const PixelTable& t, const FitRows& rows, const Effec
 
 namespace {
 
-// Row k's NLL under a chain whose first prefix.count() effects predicted prefix[k].
-double row_nll(const PixelTable& t, const FitRows& rows, size_t k, const EffectChain& chain, const SharedPrefix& prefix,
-               const PatternAdjustment* adjust) {
+// Row k's model under a chain whose first prefix.count() effects predicted prefix[k].
+RangeModel row_model(const PixelTable& t, const FitRows& rows, size_t k, const EffectChain& chain,
+                     const SharedPrefix& prefix, const PatternAdjustment* adjust) {
   const FitRow& row = rows.inputs[k];
   const ColumnContext context = row.context(t);
   Prediction p;
@@ -123,18 +125,37 @@ double row_nll(const PixelTable& t, const FitRows& rows, size_t k, const EffectC
     for (size_t e = prefix.count(); e < effects.size(); ++e) effects[e]->predict(row.ideal, context, p);
   }
   if (adjust) adjust->apply(rows[k], p);
-  return pixel_nll(t.model_for(row.model, p), row.range_m);  // the table's reference rules (PixelTable::model_for)
+  return t.model_for(row.model, p);  // the table's reference rules (PixelTable::model_for)
+}
+
+// The NLLs of rows [first, last) into out (last - first of them): their models row by row, then
+// scored together (pixel_nlls: the common case many at a time).
+void chunk_nlls(const PixelTable& t, const FitRows& rows, size_t first, size_t last, const EffectChain& chain,
+                const SharedPrefix& prefix, const PatternAdjustment* adjust, std::span<double> out) {
+  thread_local std::vector<RangeModel> models;
+  thread_local std::vector<double> measured;
+  models.resize(last - first);
+  measured.resize(last - first);
+  for (size_t k = first; k < last; ++k) {
+    models[k - first] = row_model(t, rows, k, chain, prefix, adjust);
+    measured[k - first] = static_cast<double>(rows.inputs[k].range_m);
+  }
+  pixel_nlls(models, measured, out);
 }
 
 }  // namespace
 
 double total_nll(const PixelTable& t, const FitRows& rows, const EffectChain& chain, const SharedPrefix& prefix,
                  const PatternAdjustment* adjust) {
-  // Summed per chunk of rows, the chunks added in order: the same sum whatever the pool's size.
+  // Summed per chunk of rows, in row order, the chunks added in order: the same sum whatever the
+  // pool's size.
   std::vector<double> sums((rows.size() + kPixelChunk - 1) / kPixelChunk, 0.0);
   for_each_pixel_chunk(rows.size(), rows.pool, [&](size_t first, size_t last) {
+    thread_local std::vector<double> nlls;
+    nlls.resize(last - first);
+    chunk_nlls(t, rows, first, last, chain, prefix, adjust, nlls);
     double nll = 0.0;
-    for (size_t k = first; k < last; ++k) nll += row_nll(t, rows, k, chain, prefix, adjust);
+    for (const double v : nlls) nll += v;
     sums[first / kPixelChunk] = nll;
   });
   double nll = 0.0;
@@ -146,7 +167,7 @@ std::vector<double> row_nlls(const PixelTable& t, const FitRows& rows, const Eff
                              const SharedPrefix& prefix, const PatternAdjustment* adjust) {
   std::vector<double> out(rows.size());
   for_each_pixel_chunk(rows.size(), rows.pool, [&](size_t first, size_t last) {
-    for (size_t k = first; k < last; ++k) out[k] = row_nll(t, rows, k, chain, prefix, adjust);
+    chunk_nlls(t, rows, first, last, chain, prefix, adjust, std::span<double>(out).subspan(first, last - first));
   });
   return out;
 }

@@ -2,9 +2,13 @@
 #include "lidartwin/analysis/pixel_likelihood.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <numbers>
 #include <optional>
+#include <vector>
+
+#include "analysis/likelihood_kernels.h"
 
 namespace lidartwin {
 namespace {
@@ -105,13 +109,17 @@ MixtureEntropy mixture_entropy(const RangeModel& m) {
   return {h, std::max(h2 - h * h, 0.0)};
 }
 
-// pixel_nll of a return in the common case, which the diagnosis' fits evaluate billions of times: no
-// outlier component, no partner, a window that holds all of the Gaussian, a bin narrow against
-// sigma. There P = p_detect phi(c) h (1 + ...) (normal_interval's midpoint rule), whose logarithm
-// needs no exp and one log instead of two: -ln P = c^2 / 2 + ln sqrt(2 pi) - ln(p_detect h (1 + ...)),
-// the same value to rounding (and no underflow of phi far out). Where it exceeds -ln(kImpossible)
-// the range's probability may be floored (kImpossible * uniform): the full computation decides.
-std::optional<double> narrow_bin_nll(const RangeModel& m, double measured_range_m) {
+// A return in the common case, which the diagnosis' fits score billions of times: no outlier
+// component, no partner, a window that holds all of the Gaussian, a bin narrow against sigma. There
+// P = p_detect phi(c) h (1 + ...) (normal_interval's midpoint rule), whose logarithm needs no exp
+// and one log: -ln P = c^2 / 2 + ln sqrt(2 pi) - ln(p_detect h (1 + ...)), the same value to
+// rounding (and no underflow of phi far out), which likelihood_kernels computes for many returns at
+// once. The bin's centre c and width h in sigmas, or none where the full computation is needed.
+struct NarrowBin {
+  double c, h;
+};
+std::optional<NarrowBin> narrow_bin(const RangeModel& m, double measured_range_m) {
+  if (!(measured_range_m > 0.0 && m.p_detect >= kImpossible && m.sigma_m > 0.0)) return std::nullopt;
   if (m.outlier_mix > 0.0 || m.partner_mix > 0.0) return std::nullopt;
   const double inverse_sigma = 1.0 / m.sigma_m;  // one division where the full path takes six
   if (!((m.window_min_m - m.mean_m) * inverse_sigma < -kWholeZ &&
@@ -119,12 +127,22 @@ std::optional<double> narrow_bin_nll(const RangeModel& m, double measured_range_
     return std::nullopt;
   }
   const double h = m.step_m * inverse_sigma, c = (measured_range_m - m.mean_m) * inverse_sigma;
-  if (!(h > 0.0 && h <= kNarrowZ && std::abs(c) * h <= 0.5)) return std::nullopt;
-  const double c2 = c * c, h2 = h * h;
-  const double corrected = h * (1.0 + (c2 - 1.0) * h2 / 24.0 + (c2 * c2 - 6.0 * c2 + 3.0) * h2 * h2 / 1920.0);
-  const double nll = 0.5 * c2 + kLogSqrtTwoPi - std::log(m.p_detect * corrected);
-  if (nll > -std::log(kImpossible)) return std::nullopt;
-  return nll;
+  // (h above 1e-280: the logarithm's argument stays a normal number)
+  if (!(h > 1e-280 && h <= kNarrowZ && std::abs(c) * h <= 0.5)) return std::nullopt;
+  return NarrowBin{c, h};
+}
+
+// pixel_nll in full: a miss, or a return the common case leaves out.
+double full_pixel_nll(const RangeModel& m, double measured_range_m) {
+  if (measured_range_m <= 0.0) return -std::log(std::max(1.0 - m.p_detect, kImpossible));
+  const double width = std::max(m.window_max_m - m.window_min_m, m.step_m);
+  const double uniform = std::min(1.0, m.step_m / width);
+  if (m.p_detect < kImpossible || m.sigma_m <= 0.0) return -std::log(kImpossible) - std::log(uniform);
+  const double half = 0.5 * m.step_m;
+  const double gaussian =
+      gaussian_interval(m, measured_range_m - half, measured_range_m + half, window_mass(m, m.mean_m));
+  const double p_range = (1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform;
+  return -std::log(m.p_detect) - std::log(std::max(p_range, kImpossible * uniform));
 }
 
 }  // namespace
@@ -193,19 +211,43 @@ double partner_share(const RangeModel& m) {
   return own + partner > 0.0 ? partner / (own + partner) : 0.0;
 }
 
-double pixel_nll(const RangeModel& m, double measured_range_m) {
-  if (measured_range_m <= 0.0) return -std::log(std::max(1.0 - m.p_detect, kImpossible));
-  if (m.p_detect >= kImpossible && m.sigma_m > 0.0) {
-    if (const std::optional<double> nll = narrow_bin_nll(m, measured_range_m)) return *nll;
+void pixel_nlls(std::span<const RangeModel> models, std::span<const double> measured, std::span<double> out) {
+  assert(measured.size() == models.size() && out.size() == models.size());
+  struct Batch {  // the common case's returns, gathered for the kernel
+    std::vector<double> c, h, p_detect, nll;
+    std::vector<size_t> index;
+  };
+  thread_local Batch batch;
+  Batch& b = batch;
+  b.c.clear();
+  b.h.clear();
+  b.p_detect.clear();
+  b.index.clear();
+  for (size_t i = 0; i < models.size(); ++i) {
+    if (const std::optional<NarrowBin> bin = narrow_bin(models[i], measured[i])) {
+      b.c.push_back(bin->c);
+      b.h.push_back(bin->h);
+      b.p_detect.push_back(models[i].p_detect);
+      b.index.push_back(i);
+    } else {
+      out[i] = full_pixel_nll(models[i], measured[i]);
+    }
   }
-  const double width = std::max(m.window_max_m - m.window_min_m, m.step_m);
-  const double uniform = std::min(1.0, m.step_m / width);
-  if (m.p_detect < kImpossible || m.sigma_m <= 0.0) return -std::log(kImpossible) - std::log(uniform);
-  const double half = 0.5 * m.step_m;
-  const double gaussian =
-      gaussian_interval(m, measured_range_m - half, measured_range_m + half, window_mass(m, m.mean_m));
-  const double p_range = (1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform;
-  return -std::log(m.p_detect) - std::log(std::max(p_range, kImpossible * uniform));
+  b.nll.resize(b.c.size());
+  analysis_detail::narrow_bin_nlls(b.c.data(), b.h.data(), b.p_detect.data(), b.nll.data(), b.c.size());
+  // Above -ln(kImpossible) the range's probability may be floored (kImpossible * uniform): the full
+  // computation decides.
+  const double floor_free = -std::log(kImpossible);
+  for (size_t j = 0; j < b.index.size(); ++j) {
+    const size_t i = b.index[j];
+    out[i] = b.nll[j] <= floor_free ? b.nll[j] : full_pixel_nll(models[i], measured[i]);
+  }
+}
+
+double pixel_nll(const RangeModel& m, double measured_range_m) {
+  double nll = 0.0;
+  pixel_nlls({&m, 1}, {&measured_range_m, 1}, {&nll, 1});
+  return nll;
 }
 
 PixelScore score_pixel(const RangeModel& m, double measured_range_m, double pit_draw) {

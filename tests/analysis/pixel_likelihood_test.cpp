@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
 namespace lidartwin {
 namespace {
@@ -185,6 +186,78 @@ TEST(PixelNll, EqualsScorePixelsNllInEveryCase) {
     }
   }
   EXPECT_GT(compared, 10000u);
+}
+
+// Models in the common case (pixel_nlls' SIMD kernel) and out of it, with returns near and far.
+struct Batch {
+  std::vector<RangeModel> models;
+  std::vector<double> measured;
+};
+Batch mixed_batch() {
+  Batch b;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 5003; ++i) {  // not a multiple of any vector width
+    RangeModel m = model(1.0 + 60.0 * u(rng), 0.0105 + 0.3 * u(rng) * u(rng), i % 7 == 0 ? 0.008 : 0.001,
+                         i % 5 == 0 ? 1.0 : 1e-5 + u(rng));
+    if (i % 11 == 0) m.outlier_mix = 0.01;
+    if (i % 13 == 0) m = with_partner(m, 0.3, 0.2, 0.0);
+    const double z = (u(rng) - 0.5) * (i % 17 == 0 ? 200.0 : 8.0);
+    b.measured.push_back(i % 19 == 0 ? 0.0
+                                     : std::max(0.0, std::round((m.mean_m + z * m.sigma_m) / m.step_m) * m.step_m));
+    b.models.push_back(m);
+  }
+  return b;
+}
+
+// The batch gives what each model's pixel_nll gives, and in the common case what the closed form
+// gives in long double (its logarithm is the kernel's own, within an ulp or two of libm's).
+TEST(PixelNlls, EqualsPixelNllAndTheClosedFormInLongDouble) {
+  const Batch b = mixed_batch();
+  std::vector<double> out(b.models.size());
+  pixel_nlls(b.models, b.measured, out);
+  size_t closed = 0;
+  for (size_t i = 0; i < out.size(); ++i) {
+    const RangeModel& m = b.models[i];
+    EXPECT_EQ(out[i], pixel_nll(m, b.measured[i])) << i;
+    // score_pixel takes the bin's edges in sigmas and their difference: at 60 m its width is off by an
+    // ulp of the range over the step (1e-11 of it), which the common case avoids.
+    EXPECT_NEAR(out[i], score_pixel(m, b.measured[i], 0.5).nll, 2e-11 + 1e-12 * std::abs(out[i])) << i;
+    const long double inverse = 1.0L / m.sigma_m, c = (b.measured[i] - m.mean_m) * inverse, h = m.step_m * inverse;
+    const bool whole_window =
+        (m.window_min_m - m.mean_m) * inverse < -8.5L && (m.window_max_m - m.mean_m) * inverse > 8.5L;
+    if (m.outlier_mix > 0.0 || m.partner_mix > 0.0 || b.measured[i] <= 0.0 || !whole_window || h > 0.1L ||
+        std::abs(c) * h > 0.5L) {
+      continue;
+    }
+    const long double c2 = c * c, h2 = h * h;
+    const long double p =
+        m.p_detect * h * (1.0L + (c2 - 1.0L) * h2 / 24.0L + (c2 * c2 - 6.0L * c2 + 3.0L) * h2 * h2 / 1920.0L);
+    const long double want = 0.5L * c2 + 0.918938533204672741780329736L - std::log(p);
+    if (want > 13.8) continue;  // floored: the full computation's
+    EXPECT_NEAR(out[i], static_cast<double>(want), 4e-15 * std::max(1.0L, std::abs(want))) << i;
+    ++closed;
+  }
+  EXPECT_GT(closed, 2000u);
+}
+
+// Every Highway target the CPU runs gives the same bits (multiplies, adds and a division alone),
+// so a diagnosis fits the same values on every CPU.
+TEST(PixelNlls, EveryTargetGivesTheSameBits) {
+  const Batch b = mixed_batch();
+  std::vector<double> first;
+  for (const int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    std::vector<double> out(b.models.size());
+    pixel_nlls(b.models, b.measured, out);
+    if (first.empty()) {
+      first = out;
+    } else {
+      for (size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], first[i]) << hwy::TargetName(target) << " row " << i;
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
+  EXPECT_FALSE(first.empty());
 }
 
 TEST(RangeModel, QuantizationVarianceFoldedByTheChainIsTakenBackOut) {

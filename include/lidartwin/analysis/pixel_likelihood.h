@@ -4,6 +4,8 @@
 // Gaussian mixed with a uniform outlier component. Measured ranges are integers of the wire's step
 // (1 mm, or 8 mm for RNG15), so every likelihood here is a probability, never a density: the NLLs of
 // pixels, bins and profiles add up and compare on one scale.
+#include <span>
+
 #include "lidartwin/effects/measurement.h"
 
 namespace lidartwin {
@@ -53,6 +55,9 @@ double partner_share(const RangeModel& model);
 PixelScore score_pixel(const RangeModel& model, double measured_range_m, double pit_draw);
 // score_pixel's nll alone (what the fits evaluate), without the moments and the PIT.
 double pixel_nll(const RangeModel& model, double measured_range_m);
+// pixel_nll of each model and measured range (out[i] for models[i]), the common case's returns
+// many at a time (SIMD): the same values as pixel_nll, the same on every CPU.
+void pixel_nlls(std::span<const RangeModel> models, std::span<const double> measured_range_m, std::span<double> out);
 
 // The mean and variance of the NLL a pixel would have if the model were true: summed over pixels,
 // they say what NLL to expect and how far from it the measured NLL may fall by chance.
