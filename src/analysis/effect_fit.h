@@ -46,7 +46,8 @@ std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise);
 // Each row's inputs are gathered from the table once, in row order: an evaluation reads them
 // front to back, where from the table (an array per input, the rows every k-th pixel) each input
 // costs its own cache line every few rows. That saved about 7 % of a diagnosis' CPU; the rest is
-// the per-row arithmetic (exp, log, erfc, divisions), scalar and latency-bound.
+// per-row arithmetic: each row's model (the effects after the fitted one, range_model), scalar,
+// then its likelihood, the common case in a SIMD kernel (pixel_nlls).
 struct FitRow {
   IdealReturn ideal;
   PixelTable::ModelInputs model;
