@@ -56,7 +56,7 @@ V Log(D d, V x) {
 V NarrowBinNll(D d, V c, V h, V p_detect) {
   const V c2 = hn::Mul(c, c), h2 = hn::Mul(h, h);
   const V one = hn::Set(d, 1.0);
-  // 1 + (c2 - 1) h2 / 24 + (c2 c2 - 6 c2 + 3) h2 h2 / 1920, in the scalar code's order
+  // 1 + (c2 - 1) h2 / 24 + (c2 c2 - 6 c2 + 3) h2 h2 / 1920, in normal_interval's order
   const V second = hn::Div(hn::Mul(hn::Sub(c2, one), h2), hn::Set(d, 24.0));
   const V fourth_poly = hn::Add(hn::Sub(hn::Mul(c2, c2), hn::Mul(hn::Set(d, 6.0), c2)), hn::Set(d, 3.0));
   const V fourth = hn::Div(hn::Mul(hn::Mul(fourth_poly, h2), h2), hn::Set(d, 1920.0));
@@ -65,10 +65,10 @@ V NarrowBinNll(D d, V c, V h, V p_detect) {
   return hn::Sub(hn::Add(half_c2, hn::Set(d, 0.91893853320467274178)), Log(d, hn::Mul(p_detect, corrected)));
 }
 
-// The last partial vector goes through the same code from a padded copy: every element's bits are
-// the same whatever its position.
+// op over the three inputs a vector at a time; the last partial vector goes through the same code
+// from a padded copy: every element's bits are the same whatever its position.
 template <typename Op>
-void ForEachVector(size_t n, size_t inputs, const double* const* in, double* out, Op op) {
+void ForEachVector(size_t n, const double* const* in, double* out, Op op) {
   const D d;
   const size_t lanes = hn::Lanes(d);
   size_t i = 0;
@@ -77,7 +77,7 @@ void ForEachVector(size_t n, size_t inputs, const double* const* in, double* out
   constexpr size_t kMax = 64;  // doubles: beyond any target's vector
   std::array<std::array<double, kMax>, 3> padded{};
   const double* tail[3] = {padded[0].data(), padded[1].data(), padded[2].data()};
-  for (size_t k = 0; k < inputs; ++k) {
+  for (size_t k = 0; k < 3; ++k) {
     padded[k].fill(1.0);
     std::copy(in[k] + i, in[k] + n, padded[k].begin());
   }
@@ -88,15 +88,8 @@ void ForEachVector(size_t n, size_t inputs, const double* const* in, double* out
 
 void NarrowBinNlls(const double* c, const double* h, const double* p_detect, double* out, size_t n) {
   const double* in[3] = {c, h, p_detect};
-  ForEachVector(n, 3, in, out, [](D d, size_t i, const double* const* v, double* o) {
+  ForEachVector(n, in, out, [](D d, size_t i, const double* const* v, double* o) {
     hn::StoreU(NarrowBinNll(d, hn::LoadU(d, v[0] + i), hn::LoadU(d, v[1] + i), hn::LoadU(d, v[2] + i)), d, o + i);
-  });
-}
-
-void KernelLogs(const double* x, double* out, size_t n) {
-  const double* in[3] = {x, nullptr, nullptr};
-  ForEachVector(n, 1, in, out, [](D d, size_t i, const double* const* v, double* o) {
-    hn::StoreU(Log(d, hn::LoadU(d, v[0] + i)), d, o + i);
   });
 }
 
@@ -107,13 +100,10 @@ HWY_AFTER_NAMESPACE();
 namespace lidartwin::analysis_detail {
 
 HWY_EXPORT(NarrowBinNlls);
-HWY_EXPORT(KernelLogs);
 
 void narrow_bin_nlls(const double* c, const double* h, const double* p_detect, double* out, size_t n) {
   HWY_DYNAMIC_DISPATCH(NarrowBinNlls)(c, h, p_detect, out, n);
 }
-
-void kernel_logs(const double* x, double* out, size_t n) { HWY_DYNAMIC_DISPATCH(KernelLogs)(x, out, n); }
 
 }  // namespace lidartwin::analysis_detail
 #endif  // HWY_ONCE

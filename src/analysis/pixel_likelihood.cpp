@@ -16,7 +16,6 @@ namespace {
 constexpr double kSqrtHalf = 0.70710678118654752440;
 constexpr double kWholeZ = 8.5;   // Phi(-8.5) = 9.5e-18: below half an ulp of 1
 constexpr double kNarrowZ = 0.1;  // interval width, in sigmas, up to which the midpoint rule is used
-constexpr double kLogSqrtTwoPi = 0.91893853320467274178;  // ln sqrt(2 pi)
 
 // The probability mass of the window under the Gaussian centred at mean (with sigma_m, or sigma).
 double window_mass(const RangeModel& m, double mean, double sigma) {
@@ -217,8 +216,7 @@ void pixel_nlls(std::span<const RangeModel> models, std::span<const double> meas
     std::vector<double> c, h, p_detect, nll;
     std::vector<size_t> index;
   };
-  thread_local Batch batch;
-  Batch& b = batch;
+  thread_local Batch b;
   b.c.clear();
   b.h.clear();
   b.p_detect.clear();
