@@ -56,7 +56,7 @@ PixelScore score_pixel(const RangeModel& model, double measured_range_m, double 
 // score_pixel's nll alone (what the fits evaluate), without the moments and the PIT.
 double pixel_nll(const RangeModel& model, double measured_range_m);
 // pixel_nll of each model and measured range (out[i] for models[i]), the common case's returns
-// many at a time (SIMD): the same values as pixel_nll, the same on every CPU.
+// many at a time (SIMD, the same bits on every Highway target): the same values as pixel_nll.
 void pixel_nlls(std::span<const RangeModel> models, std::span<const double> measured_range_m, std::span<double> out);
 
 // The mean and variance of the NLL a pixel would have if the model were true: summed over pixels,
