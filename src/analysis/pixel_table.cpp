@@ -246,8 +246,8 @@ void PixelTable::set_ideal(size_t i, const IdealReturn& ideal) {
 void PixelTable::set_prediction(size_t i, const Prediction& prediction, const RangeModel& model) {
   // Off a surface the model's mean is its only component's (a halo's, range_model): kept so that
   // the model rebuilt from the table (misfit_features.cpp) is the one scored.
-  // A data reference carries the sensor's own bias (model_for leaves it out).
-  const double bias = reference == Reference::kScene ? prediction.bias_m : 0.0;
+  // A data reference carries (some of) the sensor's own bias: model_for's rule.
+  const double bias = bias_against_reference(prediction);
   predicted_bias_m[i] = static_cast<float>(ideal_range_m[i] > 0.0f ? bias : model.mean_m);
   predicted_sigma_m[i] = static_cast<float>(model.sigma_m);
   p_detect[i] = static_cast<float>(model.p_detect);
@@ -260,6 +260,15 @@ void PixelTable::set_prediction(size_t i, const Prediction& prediction, const Ra
   window_min_m[i] = static_cast<float>(model.window_min_m);
   window_max_m[i] = static_cast<float>(model.window_max_m);
   step_m[i] = static_cast<float>(model.step_m);
+}
+
+double PixelTable::bias_against_reference(const Prediction& prediction) const {
+  switch (reference) {
+    case Reference::kScene: return prediction.bias_m;
+    case Reference::kTemporalMean: return 0.0;                // the pixel's own mean: every bias it has
+    case Reference::kMap: return prediction.unshared_bias_m;  // neighbouring beams' surface: all they share
+  }
+  return prediction.bias_m;
 }
 
 void PixelTable::set_incidence(size_t i, float degrees) {
@@ -310,7 +319,7 @@ RangeModel PixelTable::model_for(size_t i, Prediction prediction) const {
 
 RangeModel PixelTable::model_for(const ModelInputs& pixel, Prediction prediction) const {
   if (reference != Reference::kScene) {
-    prediction.bias_m = 0.0;  // the reference is the sensor's own: it carries its mean bias
+    prediction.bias_m = bias_against_reference(prediction);
     if (reference == Reference::kMap) prediction.p_detect = 1.0;  // only returns are in a map table
   }
   RangeModel model = range_model(prediction, static_cast<double>(pixel.ideal_range_m),

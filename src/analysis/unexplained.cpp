@@ -522,7 +522,10 @@ void PatternAdjustment::apply(size_t pixel, Prediction& p) const {
   if (k < 0) return;
   const double v = value[static_cast<size_t>(k)];
   switch (target) {
-    case Target::kBias: p.bias_m += v; break;
+    case Target::kBias:  // measured against the reference, whatever it is: none of it is shared
+      p.bias_m += v;
+      p.unshared_bias_m += v;
+      break;
     case Target::kSpread: p.variance_m2 *= v; break;
     case Target::kDetection: p.p_detect = std::min(p.p_detect * v, 1.0); break;
     case Target::kOutliers: p.outlier_mix = std::clamp(p.outlier_mix + v, 0.0, 1.0); break;

@@ -16,6 +16,7 @@
 #include "cli/atomic_output.h"
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
+#include "cli/parameter_text.h"
 #include "cli/plot_script.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/analysis/compare_report.h"
@@ -233,15 +234,18 @@ void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command
   }
   for (size_t i = 0; i < std::min<size_t>(diagnosis.ranked.size(), 5); ++i) {
     const Candidate& c = diagnosis.ranked[i];
-    std::string params;
-    for (const FittedParameter& p : c.params) params += fmt::format(" {}={:.4g}", p.name, p.value);
     std::printf("  %s (%s): delta BIC %+.1f, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
-                c.p_value, params.c_str());
+                c.p_value, parameter_values_text(c.params).c_str());
   }
   for (const Replacement& r : diagnosis.replace) std::printf("  replace: %s\n", r.sentence.c_str());
   for (const Candidate& c : diagnosis.selected) {
     std::printf("  selected: %s\n", c.effect.c_str());
-    for (const FittedParameter& p : c.params) std::printf("    %s\n", interval_text(p).c_str());
+    const std::vector<FittedParameter> shown = parameters_to_show(c.params, 8);
+    for (const FittedParameter& p : shown) std::printf("    %s\n", interval_text(p).c_str());
+    if (shown.size() < c.params.size()) {
+      std::printf("    (the %zu strongest of %zu parameters; report.json has them all)\n", shown.size(),
+                  c.params.size());
+    }
   }
   for (const SharedMisfit& shared : diagnosis.shared) std::printf("  %s\n", shared.sentence.c_str());
   for (const NotSelected& n : diagnosis.not_selected) std::printf("  %s\n", n.sentence.c_str());

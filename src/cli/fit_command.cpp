@@ -17,6 +17,7 @@
 #include "cli/atomic_output.h"
 #include "cli/command.h"
 #include "cli/measured_inputs.h"
+#include "cli/parameter_text.h"
 #include "cli/unit_twin.h"
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
@@ -88,9 +89,11 @@ std::string fit_source(const Candidate& c, const Measured& measured, size_t pixe
   std::string out =
       fmt::format("lidartwin fit{} on {} (frames {}-{}, {} pixels):", mode, fs::path(in.capture).filename().string(),
                   in.skipped_frames, in.skipped_frames + in.frames - 1, pixels);
-  for (const FittedParameter& p : c.params) {
+  constexpr size_t kShown = 6;  // of a table (E10's per beam): the effect itself holds every value
+  for (const FittedParameter& p : parameters_to_show(c.params, kShown)) {
     out += fmt::format(" {} {:.4g} (95 %: {:.4g}-{:.4g})", p.name, p.value, p.ci95_lo, p.ci95_hi);
   }
+  if (c.params.size() > kShown) out += fmt::format(" (the {} strongest of {} parameters)", kShown, c.params.size());
   return out + fmt::format(", delta BIC {:+.0f}", c.delta_bic);
 }
 

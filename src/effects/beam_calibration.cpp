@@ -78,7 +78,9 @@ class BeamCalibration final : public Effect {
   void predict(const IdealReturn& ideal, const ColumnContext&, Prediction& prediction) const override {
     const Beam b = beam(ideal.beam);
     const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
-    prediction.bias_m += b.scale * mean + b.offset_m;
+    const double bias = b.scale * mean + b.offset_m;
+    prediction.bias_m += bias;
+    prediction.unshared_bias_m += bias;  // the beam's own: its neighbours do not share it
     prediction.variance_m2 *= (1.0 + b.scale) * (1.0 + b.scale);
   }
 

@@ -61,6 +61,8 @@ Hidden effects, written from lidar-physics.md's models alone (all off by default
   E4  --divergence G          variance += (r tan(theta) G / 2.355)^2, theta the incidence on the wall
   E10 --beam-offset-sigma S   r' = (1 + s_b) r + dr_b, dr_b ~ N(0, S), s_b ~ N(0, --beam-scale-sigma),
                               per beam, drawn from --beam-seed (one unit)
+      --beam-offset B M       beam B's offset dr_B += M metres (repeatable), as a real unit's one
+                              badly calibrated beam
   E12 --drift-mu0 A --drift-muinf B --drift-tau T
                               common-mode offset mu(t) = B + (A - B) exp(-t / T), t the column's time
                               since the capture's first column
@@ -414,6 +416,10 @@ class Hidden:
         unit = np.random.default_rng(args.beam_seed)
         self.beam_offset_m = unit.standard_normal(H) * args.beam_offset_sigma
         self.beam_scale = unit.standard_normal(H) * args.beam_scale_sigma
+        for beam, offset_m in args.beam_offset or []:
+            if not 0 <= int(beam) < H:
+                raise SystemExit(f"independent_capture.py: --beam-offset: beam {beam} is not one of 0..{H - 1}")
+            self.beam_offset_m[int(beam)] += offset_m
         self.mu0, self.muinf, self.tau = args.drift_mu0, args.drift_muinf, args.drift_tau
 
     def truth(self):
@@ -581,6 +587,8 @@ def parse_args():
     p.add_argument("--beam-offset-sigma", type=float, default=0.0, help="E10: per-beam offsets' sd, m")
     p.add_argument("--beam-scale-sigma", type=float, default=0.0, help="E10: per-beam scales' sd")
     p.add_argument("--beam-seed", type=int, default=7, help="E10: the unit")
+    p.add_argument("--beam-offset", type=float, nargs=2, action="append", metavar=("BEAM", "METRES"),
+                   help="E10: one beam's offset, added to its drawn one (repeatable)")
     p.add_argument("--drift-mu0", type=float, default=0.0, help="E12: common offset at t = 0, m")
     p.add_argument("--drift-muinf", type=float, default=0.0, help="E12: common offset after warm-up, m")
     p.add_argument("--drift-tau", type=float, default=0.0, help="E12: warm-up time constant, s (0: off)")

@@ -69,7 +69,9 @@ struct PixelTable {
   // data (docs/compare-report.md, "References without a scene"): static mode's temporal mean of
   // the pixel's own returns, or map mode's surface fitted to the other frames' points. A reference
   // made of the sensor's own returns carries the sensor's own mean bias, so the chain's bias is
-  // left out of the prediction; its own error enters the spread (reference_scale and
+  // left out of the prediction, but for the part a map's neighbouring beams do not share
+  // (Prediction::unshared_bias_m: per-beam offsets, E10, which a map's surface averages away and a
+  // temporal mean does not); its own error enters the spread (reference_scale and
   // reference_variance_m2, per pixel) and map mode, which keeps only returns, does not judge
   // detection (p_detect 1).
   enum class Reference : uint8_t { kScene, kTemporalMean, kMap };
@@ -110,6 +112,8 @@ struct PixelTable {
   };
   ModelInputs model_inputs_of(size_t i) const;
   RangeModel model_for(const ModelInputs& pixel, Prediction prediction) const;
+  // The part of a prediction's bias that the reference does not carry (see Reference).
+  double bias_against_reference(const Prediction& prediction) const;
   // Predicts pixel i with the chain and stores it (model_for's model).
   void predict(size_t i, const EffectChain& chain);
   // The residual's share of the degrees of freedom (1 but for temporal means: 1 - 1/n).

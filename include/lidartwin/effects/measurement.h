@@ -76,6 +76,10 @@ struct MeasuredColumn {
 // truncated there, and p_detect already includes its probability mass inside the window.
 struct Prediction {
   double bias_m = 0.0;
+  // The part of bias_m that the pixel's neighbours at the same place do not share: E10's per-beam
+  // offsets and scales. A reference surface made of the sensor's own returns from neighbouring beams
+  // (map mode) carries the rest of the bias, not this.
+  double unshared_bias_m = 0.0;
   double variance_m2 = 0.0;
   double p_detect = 1.0;
   double outlier_mix = 0.0;
