@@ -23,6 +23,8 @@ namespace lidartwin::analysis_detail {
 const std::vector<CandidateSpec>& candidate_specs() {
   static const std::vector<CandidateSpec> specs{
       {"signal_precision", {{"k_m", 0.05, 0.05}}},
+      // E2's tails: how often at low signal, and how wide.
+      {"signal_outliers", {{"probability", 0.05, 0.05}, {"half_signal_photons", 10.0, 10.0}, {"sigma_m", 0.1, 0.05}}},
       {"range_walk", {{"walk_m", 0.0, 0.005}, {"retro_offset_m", 0.0, 0.01}}},
       {"incidence", {{"divergence_rad", 0.002, 0.001}, {"bias_factor", 0.0, 0.2}}},
       {"drift", {{"offset_m", 0.0, 0.005}, {"warmup_offset_m", 0.0, 0.01}, {"warmup_time_s", 1.0, 0.5}}},

@@ -22,6 +22,7 @@ using analysis_detail::expected_outlier_share;
 using analysis_detail::f64;
 using analysis_detail::Feature;
 using analysis_detail::Features;
+using analysis_detail::inlier_z2;
 using analysis_detail::kMinTested;
 using analysis_detail::kOutlierZ;
 using analysis_detail::make_features;
@@ -95,14 +96,16 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   // the residual's variance share it), by 10 % where sigma is twice the model's and v a tenth of it.
   const double reference2 = f64(t.reference_variance_m2[i]);
   const double reference_share = std::min(reference2 / (sigma * sigma), 1.0);
+  // E[z^2] of an inlier is 1 under the model, more where E2's tails put some returns inside too.
+  const double z2 = inlier_z2(t, i);
   a.wz2 += w * (z * z - reference_share);
-  a.model_dof += w * (1.0 - reference_share);
+  a.model_dof += w * (z2 - reference_share);
   a.reference2 += reference2;
   a.e += e;
   a.eb += e - bias;
   a.eb2 += (e - bias) * (e - bias);
   a.bias += bias;
-  a.sigma2 += sigma * sigma;
+  a.sigma2 += z2 * sigma * sigma;
   a.sheppard += (f64(t.step_m[i])) * f64(t.step_m[i]) / (12.0 * sigma * sigma);
 }
 

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <set>
 
 namespace lidartwin::analysis_detail {
@@ -16,6 +17,8 @@ RangeModel model_of(const PixelTable& t, size_t i) {
   m.partner_mix = f64(t.partner_mix[i]);
   m.partner_offset_m = f64(t.partner_offset_m[i]);
   m.partner_sigma_m = f64(t.partner_sigma_m[i]);
+  m.tail_mix = f64(t.tail_mix[i]);
+  m.tail_sigma_m = f64(t.tail_sigma_m[i]);
   m.window_min_m = f64(t.window_min_m[i]);
   m.window_max_m = f64(t.window_max_m[i]);
   m.step_m = f64(t.step_m[i]);
@@ -24,16 +27,32 @@ RangeModel model_of(const PixelTable& t, size_t i) {
 
 double expected_outlier_share(const PixelTable& t, size_t i) {
   // Returns from an edge partner (E6) a depth step away, or a halo's (E8) at a retroreflector's
-  // range, fall outside the pixel's own Gaussian too: the share of that component beyond the bounds.
+  // range, fall outside the pixel's own Gaussian too, as do E2's tails: the share of each component
+  // beyond the bounds.
   const RangeModel m = model_of(t, i);
   const double share = partner_share(m);
+  const double bound = kOutlierZ * m.sigma_m;
   double partner_out = 0.0;
   if (share > 0.0) {
-    const double bound = kOutlierZ * m.sigma_m, sigma = m.partner_sigma();
+    const double sigma = m.partner_sigma();
     partner_out = 1.0 - normal_interval((-bound - m.partner_offset_m) / sigma, (bound - m.partner_offset_m) / sigma);
   }
+  const double tail = (1.0 - share) * std::clamp(m.tail_mix, 0.0, 1.0);
+  const double tail_out = tail > 0.0 ? 1.0 - normal_interval(-bound / m.tail_sigma_m, bound / m.tail_sigma_m) : 0.0;
+  const double core = 1.0 - share - tail;
   const double pi = std::clamp(m.outlier_mix, 0.0, 1.0);
-  return pi + (1.0 - pi) * ((1.0 - share) * 2.0 * normal_cdf(-kOutlierZ) + share * partner_out);
+  return pi + (1.0 - pi) * (core * 2.0 * normal_cdf(-kOutlierZ) + share * partner_out + tail * tail_out);
+}
+
+double inlier_z2(const PixelTable& t, size_t i) {
+  const double tail = std::clamp(f64(t.tail_mix[i]), 0.0, 1.0);
+  const double k = f64(t.tail_sigma_m[i]) / f64(t.predicted_sigma_m[i]);  // the tail's sigma in the core's
+  if (tail <= 0.0 || !(k > 0.0) || !std::isfinite(k)) return 1.0;
+  // A standard normal's share inside +-a and its second moment there, for the tail's a = kOutlierZ / k.
+  const double a = kOutlierZ / k;
+  const double inside = 1.0 - 2.0 * normal_cdf(-a);
+  const double second = k * k * (inside - 2.0 * a * std::exp(-0.5 * a * a) / std::sqrt(2.0 * std::numbers::pi));
+  return ((1.0 - tail) + tail * second) / ((1.0 - tail) + tail * inside);  // the core's: 1 of nearly all
 }
 
 int Feature::bin(double v) const {

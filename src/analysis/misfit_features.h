@@ -24,6 +24,9 @@ RangeModel model_of(const PixelTable& t, size_t i);
 // The probability that return i lies beyond kOutlierZ sigma under the model (outlier components,
 // an edge partner a depth step away, the Gaussian's own tails).
 double expected_outlier_share(const PixelTable& t, size_t i);
+// E[z^2] of return i given that it is an inlier (|z| <= kOutlierZ, z in the core's sigmas): 1, but
+// where E2's tails put a share of the returns in a wider Gaussian, some of which fall inside.
+double inlier_z2(const PixelTable& t, size_t i);
 
 struct Feature {
   std::string name;

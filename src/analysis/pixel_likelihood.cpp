@@ -24,21 +24,28 @@ double window_mass(const RangeModel& m, double mean, double sigma) {
 double window_mass(const RangeModel& m, double mean) { return window_mass(m, mean, m.sigma_m); }
 
 // The probability of [lo, hi] under the Gaussian part truncated to the window: the pixel's own
-// surface and, with weight partner_mix, its edge partner's (E6) or a halo's (E8), the mixture
-// renormalized by the mass it has inside the window (a partner inside it may be all that is
-// detected).
+// surface and, with weight partner_mix, its edge partner's (E6) or a halo's (E8), a tail_mix share
+// of the pixel's own returns wider (E2's tails), the mixture renormalized by the mass it has inside
+// the window (a partner inside it may be all that is detected).
 double gaussian_interval(const RangeModel& m, double lo, double hi, double gaussian_mass) {
   const auto interval = [&](double mean, double sigma) {
     return normal_interval((lo - mean) / sigma, (hi - mean) / sigma);
   };
-  if (m.partner_mix <= 0.0) return gaussian_mass > 0.0 ? interval(m.mean_m, m.sigma_m) / gaussian_mass : 0.0;
-  const double partner_mean = m.mean_m + m.partner_offset_m, partner_sigma = m.partner_sigma();
-  const double mass =
-      (1.0 - m.partner_mix) * gaussian_mass + m.partner_mix * window_mass(m, partner_mean, partner_sigma);
-  if (mass <= 0.0) return 0.0;
-  return ((1.0 - m.partner_mix) * interval(m.mean_m, m.sigma_m) +
-          m.partner_mix * interval(partner_mean, partner_sigma)) /
-         mass;
+  if (m.partner_mix <= 0.0 && m.tail_mix <= 0.0) {
+    return gaussian_mass > 0.0 ? interval(m.mean_m, m.sigma_m) / gaussian_mass : 0.0;
+  }
+  const double own = 1.0 - m.partner_mix, tail = own * m.tail_mix, core = own - tail;
+  double mass = core * gaussian_mass, p = core * interval(m.mean_m, m.sigma_m);
+  if (m.partner_mix > 0.0) {
+    const double partner_mean = m.mean_m + m.partner_offset_m, partner_sigma = m.partner_sigma();
+    mass += m.partner_mix * window_mass(m, partner_mean, partner_sigma);
+    p += m.partner_mix * interval(partner_mean, partner_sigma);
+  }
+  if (tail > 0.0) {
+    mass += tail * window_mass(m, m.mean_m, m.tail_sigma_m);
+    p += tail * interval(m.mean_m, m.tail_sigma_m);
+  }
+  return mass > 0.0 ? p / mass : 0.0;
 }
 
 // The CDF of the returned range (before quantization): the truncated Gaussian part mixed with the
@@ -108,6 +115,56 @@ MixtureEntropy mixture_entropy(const RangeModel& m) {
   return {h, std::max(h2 - h * h, 0.0)};
 }
 
+// E[-ln P(bin)] and its variance for the whole mixture of Gaussians (the pixel's own, its tail's,
+// a partner's) truncated to the window and quantized: where the tail is, the components overlap by
+// construction. Bins narrow against the narrowest component: the density by the midpoint rule, on a
+// grid a quarter of that sigma apart; wider bins: bin by bin. At most kMixturePoints either way
+// (the grid coarsens beyond that).
+constexpr double kMixturePoints = 20000.0;
+
+MixtureEntropy quantized_mixture_entropy(const RangeModel& m) {
+  const double own_mass = window_mass(m, m.mean_m);
+  double lo = m.mean_m - 9.0 * std::max(m.sigma_m, m.tail_sigma_m);
+  double hi = m.mean_m + 9.0 * std::max(m.sigma_m, m.tail_sigma_m);
+  if (m.partner_mix > 0.0) {
+    lo = std::min(lo, m.mean_m + m.partner_offset_m - 9.0 * m.partner_sigma());
+    hi = std::max(hi, m.mean_m + m.partner_offset_m + 9.0 * m.partner_sigma());
+  }
+  lo = std::max(lo, m.window_min_m);
+  hi = std::min(hi, m.window_max_m);
+  if (hi <= lo) return {};
+  const double narrowest = std::min({m.sigma_m, m.tail_mix > 0.0 ? m.tail_sigma_m : m.sigma_m, m.partner_sigma()});
+  const bool narrow_bins = narrowest >= 4.0 * m.step_m;
+  const double dx = std::max({narrow_bins ? 0.25 * narrowest : m.step_m, (hi - lo) / kMixturePoints, 1e-9});
+  double h = 0.0, h2 = 0.0;
+  // Narrow bins: the mixture's density times step (its components' weights over their masses in
+  // the window, as gaussian_interval weighs them). Wide bins: each bin's own probability, at their
+  // centres, the multiples of step (measured ranges are).
+  const double own = 1.0 - m.partner_mix, tail = own * m.tail_mix, core = own - tail;
+  const double tail_mass = window_mass(m, m.mean_m, m.tail_sigma_m);
+  const double partner_mean = m.mean_m + m.partner_offset_m, partner_sigma = m.partner_sigma();
+  const double partner_mass = m.partner_mix > 0.0 ? window_mass(m, partner_mean, partner_sigma) : 0.0;
+  const double mass = core * own_mass + tail * tail_mass + m.partner_mix * partner_mass;
+  if (mass <= 0.0) return {};
+  const auto bin_at = [&](double x) {
+    if (!narrow_bins) return gaussian_interval(m, x - 0.5 * m.step_m, x + 0.5 * m.step_m, own_mass);
+    double f = core * normal_pdf((x - m.mean_m) / m.sigma_m) / m.sigma_m +
+               tail * normal_pdf((x - m.mean_m) / m.tail_sigma_m) / m.tail_sigma_m;
+    if (m.partner_mix > 0.0) f += m.partner_mix * normal_pdf((x - partner_mean) / partner_sigma) / partner_sigma;
+    return f * m.step_m / mass;
+  };
+  const double first = narrow_bins ? lo + 0.5 * dx : std::round(lo / m.step_m) * m.step_m;
+  for (double x = first; x < hi + 0.5 * m.step_m; x += dx) {
+    const double q = bin_at(x);  // the probability of a bin of width step there
+    if (q <= 0.0) continue;
+    const double weight = q * dx / m.step_m;  // the share of returns there
+    const double nll = -std::log(q);
+    h += weight * nll;
+    h2 += weight * nll * nll;
+  }
+  return {h, std::max(h2 - h * h, 0.0)};
+}
+
 // A return in the common case, which the diagnosis' fits score billions of times: no outlier
 // component, no partner, a window that holds all of the Gaussian, a bin narrow against sigma. There
 // P = p_detect phi(c) h (1 + ...) (normal_interval's midpoint rule), whose logarithm needs no exp
@@ -119,7 +176,7 @@ struct NarrowBin {
 };
 std::optional<NarrowBin> narrow_bin(const RangeModel& m, double measured_range_m) {
   if (!(measured_range_m > 0.0 && m.p_detect >= kImpossible && m.sigma_m > 0.0)) return std::nullopt;
-  if (m.outlier_mix > 0.0 || m.partner_mix > 0.0) return std::nullopt;
+  if (m.outlier_mix > 0.0 || m.partner_mix > 0.0 || m.tail_mix > 0.0) return std::nullopt;
   const double inverse_sigma = 1.0 / m.sigma_m;  // one division where the full path takes six
   if (!((m.window_min_m - m.mean_m) * inverse_sigma < -kWholeZ &&
         (m.window_max_m - m.mean_m) * inverse_sigma > kWholeZ)) {
@@ -129,6 +186,38 @@ std::optional<NarrowBin> narrow_bin(const RangeModel& m, double measured_range_m
   // (h above 1e-280: the logarithm's argument stays a normal number)
   if (!(h > 1e-280 && h <= kNarrowZ && std::abs(c) * h <= 0.5)) return std::nullopt;
   return NarrowBin{c, h};
+}
+
+// A return with E2's tails and nothing else beside its Gaussian (no outliers, no partner), both
+// components whole in the window and its bin narrow against the core: the full path's midpoint
+// rule for each, P = (1 - t) phi(c) h (1 + ...) + t phi(c / k) (h / k) (1 + ...), k the tail's sigma
+// in the core's, with two exps and one log instead of the full path's window masses and erfcs (the
+// tails' candidate is fitted over every return). None where the full path is needed, or where the
+// result would reach the floor (the full path applies it).
+std::optional<double> tail_pixel_nll(const RangeModel& m, double measured_range_m) {
+  if (!(measured_range_m > 0.0 && m.p_detect >= kImpossible && m.sigma_m > 0.0 && m.tail_mix > 0.0)) {
+    return std::nullopt;
+  }
+  if (m.outlier_mix > 0.0 || m.partner_mix > 0.0 || !(m.tail_sigma_m >= m.sigma_m)) return std::nullopt;
+  if (!((m.window_min_m - m.mean_m) / m.tail_sigma_m < -kWholeZ &&
+        (m.window_max_m - m.mean_m) / m.tail_sigma_m > kWholeZ && (m.window_min_m - m.mean_m) / m.sigma_m < -kWholeZ &&
+        (m.window_max_m - m.mean_m) / m.sigma_m > kWholeZ)) {
+    return std::nullopt;
+  }
+  const double h = m.step_m / m.sigma_m, c = (measured_range_m - m.mean_m) / m.sigma_m;
+  if (!(h > 1e-280 && h <= kNarrowZ && std::abs(c) * h <= 0.5)) return std::nullopt;
+  const double k = m.tail_sigma_m / m.sigma_m, ht = h / k, ct = c / k;
+  const auto poly = [](double cc, double hh) {
+    const double c2 = cc * cc, h2 = hh * hh;
+    return 1.0 + (c2 - 1.0) * h2 / 24.0 + (c2 * c2 - 6.0 * c2 + 3.0) * h2 * h2 / 1920.0;
+  };
+  const double t = std::min(m.tail_mix, 1.0);
+  const double p =
+      ((1.0 - t) * std::exp(-0.5 * c * c) * h * poly(c, h) + t * std::exp(-0.5 * ct * ct) * ht * poly(ct, ht)) /
+      std::sqrt(2.0 * std::numbers::pi);
+  const double nll = -std::log(m.p_detect) - std::log(p);
+  if (!(p > 0.0) || !(nll <= -std::log(kImpossible))) return std::nullopt;
+  return nll;
 }
 
 // pixel_nll in full: a miss, or a return the common case leaves out.
@@ -193,6 +282,10 @@ RangeModel range_model(const Prediction& prediction, double ideal_range_m, doubl
   if (prediction.partner_extra_variance_m2 != 0.0) {
     m.partner_sigma_m = std::sqrt(std::max(variance + prediction.partner_extra_variance_m2, 1e-10));
   }
+  if (prediction.tail_mix > 0.0 && !partner_only) {
+    m.tail_mix = std::min(prediction.tail_mix, 1.0);
+    m.tail_sigma_m = std::sqrt(std::max(variance + prediction.tail_extra_variance_m2, 1e-10));
+  }
   if (partner_only) {
     m.mean_m += m.partner_offset_m;
     m.sigma_m = m.partner_sigma();
@@ -227,6 +320,8 @@ void pixel_nlls(std::span<const RangeModel> models, std::span<const double> meas
       b.h.push_back(bin->h);
       b.p_detect.push_back(models[i].p_detect);
       b.index.push_back(i);
+    } else if (const std::optional<double> tail = tail_pixel_nll(models[i], measured[i])) {
+      out[i] = *tail;
     } else {
       out[i] = full_pixel_nll(models[i], measured[i]);
     }
@@ -331,7 +426,11 @@ NllMoments expected_nll(const RangeModel& m) {
   // their mixing entropy, and the choice's own spread to the variance. A component with its own
   // sigma costs ln(sigma' / sigma) more per return (bins narrow against both).
   const double pe = std::clamp(m.partner_mix, 0.0, 1.0);
-  if (partner_overlaps(m) && std::min(m.sigma_m, m.partner_sigma()) >= 4.0 * m.step_m) {
+  if (m.tail_mix > 0.0) {
+    const MixtureEntropy e = quantized_mixture_entropy(m);
+    entropy = e.mean;
+    variance = e.variance;
+  } else if (partner_overlaps(m) && std::min(m.sigma_m, m.partner_sigma()) >= 4.0 * m.step_m) {
     // Overlapping components (a halo on the retroreflector's own board, a small depth step): the
     // mixture's density, not two separate Gaussians and the choice between them.
     const MixtureEntropy e = mixture_entropy(m);

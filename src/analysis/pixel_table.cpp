@@ -200,6 +200,8 @@ void PixelTable::resize(size_t n) {
                   &partner_mix,
                   &partner_offset_m,
                   &partner_sigma_m,
+                  &tail_mix,
+                  &tail_sigma_m,
                   &expected_signal,
                   &expected_near_ir,
                   &window_min_m,
@@ -255,6 +257,8 @@ void PixelTable::set_prediction(size_t i, const Prediction& prediction, const Ra
   partner_mix[i] = static_cast<float>(model.partner_mix);
   partner_offset_m[i] = static_cast<float>(model.partner_offset_m);
   partner_sigma_m[i] = static_cast<float>(model.partner_sigma_m);
+  tail_mix[i] = static_cast<float>(model.tail_mix);
+  tail_sigma_m[i] = static_cast<float>(model.tail_sigma_m);
   expected_signal[i] = static_cast<float>(prediction.signal_photons);
   expected_near_ir[i] = static_cast<float>(prediction.near_ir_photons);
   window_min_m[i] = static_cast<float>(model.window_min_m);
@@ -329,6 +333,7 @@ RangeModel PixelTable::model_for(const ModelInputs& pixel, Prediction prediction
     const double add = static_cast<double>(pixel.reference_variance_m2);
     const auto adjusted = [&](double sigma) { return std::sqrt(sigma * sigma * scale + add); };
     if (model.partner_sigma_m > 0.0) model.partner_sigma_m = adjusted(model.partner_sigma_m);
+    if (model.tail_sigma_m > 0.0) model.tail_sigma_m = adjusted(model.tail_sigma_m);
     model.sigma_m = adjusted(model.sigma_m);
   }
   return model;

@@ -19,6 +19,7 @@ using analysis_detail::expected_outlier_share;
 using analysis_detail::f64;
 using analysis_detail::Feature;
 using analysis_detail::Features;
+using analysis_detail::inlier_z2;
 using analysis_detail::kMinTested;
 using analysis_detail::kOutlierZ;
 
@@ -87,7 +88,8 @@ Residual residual_of(const std::string& quantity, const PixelTable& t, const Pix
     }
     if (outlier) continue;
     const double sd = f64(s.sd_m[i]), step = f64(t.step_m[i]);
-    const double vz = 1.0 + step * step / (12.0 * sd * sd);  // z's variance, with the range bins' (Sheppard)
+    // z's variance among inliers (more with E2's tails), with the range bins' (Sheppard).
+    const double vz = inlier_z2(t, i) + step * step / (12.0 * sd * sd);
     const double e = f64(t.range_m[i]) - f64(s.mean_m[i]);
     if (bias) {
       const double ideal = f64(t.ideal_range_m[i]);

@@ -21,6 +21,7 @@ std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, const Lo
 std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, const Location& at);
 std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, const Location& at);
 std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, const Location& at);  // E2
+std::unique_ptr<Effect> make_signal_outliers(const nlohmann::json& params, const Location& at);   // E2's tails
 std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, const Location& at);        // E3
 std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, const Location& at);         // E4
 std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, const Location& at);      // E6

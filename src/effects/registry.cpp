@@ -30,6 +30,7 @@ Registry& registry() {
     r->add("range_noise_linear", make_range_noise_linear, "E1");
     r->add("range_noise_piecewise", make_range_noise_piecewise, "E1");
     r->add("signal_precision", make_signal_precision, "E2");
+    r->add("signal_outliers", make_signal_outliers, "E2");
     r->add("range_walk", make_range_walk, "E3");
     r->add("incidence", make_incidence, "E4");
     r->add("dropout", make_dropout, "E5");

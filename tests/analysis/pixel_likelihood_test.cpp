@@ -55,8 +55,8 @@ struct Case {
 void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
 
 // A draw from the model as the sensor would report it: detected or not, then the Gaussian
-// mixture (the pixel's own and the partner's component) truncated to the window (rejection), or
-// the uniform outlier, rounded to the bin grid.
+// mixture (the pixel's own, its tail's and the partner's component) truncated to the window
+// (rejection), or the uniform outlier, rounded to the bin grid.
 double draw(const RangeModel& m, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   if (u(rng) >= m.p_detect) return 0.0;
@@ -66,8 +66,11 @@ double draw(const RangeModel& m, std::mt19937_64& rng) {
   } else {
     std::normal_distribution<double> n(0.0, 1.0);
     do {
-      r = u(rng) < m.partner_mix ? m.mean_m + m.partner_offset_m + m.partner_sigma() * n(rng)
-                                 : m.mean_m + m.sigma_m * n(rng);
+      if (u(rng) < m.partner_mix) {
+        r = m.mean_m + m.partner_offset_m + m.partner_sigma() * n(rng);
+      } else {
+        r = m.mean_m + (u(rng) < m.tail_mix ? m.tail_sigma_m : m.sigma_m) * n(rng);
+      }
     } while (r < m.window_min_m || r > m.window_max_m);
   }
   return std::round(r / m.step_m) * m.step_m;
@@ -105,9 +108,22 @@ TEST_P(ScorePixelUnderItsModel, NllMatchesItsExpectationAndPitIsUniform) {
       m.partner_mix > 0.0 && std::abs(m.partner_offset_m) < 10.0 * std::max(m.sigma_m, m.partner_sigma());
   const double zm = z / returns;
   const double shep = 1.0;  // bins add step^2/12
-  if (!overlapping) {
+  const double sheppard = m.step_m * m.step_m / (12.0 * m.sigma_m * m.sigma_m);
+  if (m.tail_mix > 0.0 && !overlapping) {
+    // E2's tails put some of their returns within 5 sigma too: z^2 of the inliers is the mixture's
+    // within +-5 (a normal's second moment inside +-a: P(|x| < a) - 2 a phi(a)), in the core's sigmas.
+    const double k = m.tail_sigma_m / m.sigma_m, a = 5.0 / k;
+    const double inside = std::erf(a / std::sqrt(2.0));
+    const double second = k * k * (inside - 2.0 * a * std::exp(-0.5 * a * a) / std::sqrt(2.0 * M_PI));
+    const double tail = m.tail_mix;  // of the pixel's own returns (no partner overlaps here)
+    const double expected_z2 = ((1.0 - tail) + tail * second) / ((1.0 - tail) + tail * inside);
     EXPECT_NEAR(zm, 0.0, 0.02);
-    EXPECT_NEAR(z2 / returns - zm * zm, shep + m.step_m * m.step_m / (12.0 * m.sigma_m * m.sigma_m), 0.03);
+    // Bins wider than sigma (RNG15's 8 mm against 6 mm) put the 5-sigma cut on their edges: the
+    // formula holds to about Sheppard's term there.
+    EXPECT_NEAR(z2 / returns - zm * zm, expected_z2 + sheppard, 0.03 * expected_z2 + 0.5 * sheppard);
+  } else if (!overlapping) {
+    EXPECT_NEAR(zm, 0.0, 0.02);
+    EXPECT_NEAR(z2 / returns - zm * zm, shep + sheppard, 0.03);
   }
   double chi2 = 0.0;
   for (const int count : pit) chi2 += std::pow(count - detected / 10.0, 2) / (detected / 10.0);
@@ -125,6 +141,12 @@ RangeModel with_partner(RangeModel m, double mix, double offset, double sigma) {
   m.partner_sigma_m = sigma;
   return m;
 }
+// With E2's tails: this share of the pixel's own returns with this sigma.
+RangeModel with_tail(RangeModel m, double mix, double sigma) {
+  m.tail_mix = mix;
+  m.tail_sigma_m = sigma;
+  return m;
+}
 
 INSTANTIATE_TEST_SUITE_P(
     Models, ScorePixelUnderItsModel,
@@ -139,7 +161,13 @@ INSTANTIATE_TEST_SUITE_P(
                       // A halo beside a retroreflector on the same board: its
                       // component overlaps the surface's own.
                       Case{"halo_overlapping_the_surface", with_partner(model(8.0, 0.01, 0.001), 0.3, 0.005, 0.02)},
-                      Case{"edge_partner_one_sigma_away", with_partner(model(8.0, 0.01, 0.001), 0.5, 0.01, 0.0)}),
+                      Case{"edge_partner_one_sigma_away", with_partner(model(8.0, 0.01, 0.001), 0.5, 0.01, 0.0)},
+                      Case{"tails_1mm_bins", with_tail(model(8.0, 0.01, 0.001), 0.2, 0.1)},
+                      // crc_test.pcap's dark targets: RNG15's 8 mm bins wider than the core's sigma.
+                      Case{"tails_rng15_8mm_bins", with_tail(model(1.5, 0.006, 0.008), 0.15, 0.15)},
+                      Case{"tails_near_the_window", with_tail(model(0.5, 0.01, 0.001, 0.9), 0.3, 0.2)},
+                      Case{"tails_beside_an_edge_partner",
+                           with_tail(with_partner(model(8.0, 0.01, 0.001), 0.3, 0.6, 0.0), 0.1, 0.05)}),
     [](const auto& test_info) { return test_info.param.name; });
 
 TEST(ScorePixel, WhatTheModelRulesOutCostsAFiniteVisibleAmount) {

@@ -40,7 +40,9 @@ TEST(EffectJson, ErrorsNameTheSourcePathAndRange) {
             "profiles/os1-64.json: /effects/0/name: unknown effect \"range_noise_gaussian\"; registered effects: "
             "beam_calibration, drift, dropout, false_alarms, fog, halo, incidence, mixed_pixels, radiometry, "
             "range_limits, range_noise_linear, "
-            "range_noise_piecewise, range_quantization, range_walk, shot_noise, signal_precision, vibration, window");
+            "range_noise_piecewise, range_quantization, range_walk, shot_noise, signal_outliers, signal_precision, "
+            "vibration, "
+            "window");
   EXPECT_TRUE(
       error_of(json::array({{{"sigma0_m", 0.01}}}))
           .starts_with("profiles/os1-64.json: /effects/0/name: missing; registered effects: beam_calibration,"));
@@ -119,6 +121,7 @@ TEST(EffectRegistry, EveryBuiltInRangeEffectCarriesItsCatalogueId) {
   const std::map<std::string, std::string> expected{{"range_noise_linear", "E1"},
                                                     {"range_noise_piecewise", "E1"},
                                                     {"signal_precision", "E2"},
+                                                    {"signal_outliers", "E2"},
                                                     {"range_walk", "E3"},
                                                     {"incidence", "E4"},
                                                     {"dropout", "E5"},

@@ -67,6 +67,9 @@ Hidden effects, written from lidar-physics.md's models alone (all off by default
                               common-mode offset mu(t) = B + (A - B) exp(-t / T), t the column's time
                               since the capture's first column
   E2  --snr-k K               variance += K^2 (S + B) / S^2 (signal-dependent precision)
+  E2  --tail-probability P --tail-half-signal S0 --tail-sigma M
+                              tails: with probability P / (1 + S / S0) a return's range gets another
+                              N(0, M^2) (3.3's second, wider Gaussian of the outliers)
   E5  --detect-threshold T --detect-width W
                               a return is reported with probability 1 / (1 + exp(-(ln S - ln T) / W));
                               otherwise range, signal and reflectivity are 0
@@ -421,12 +424,24 @@ class Hidden:
                 raise SystemExit(f"independent_capture.py: --beam-offset: beam {beam} is not one of 0..{H - 1}")
             self.beam_offset_m[int(beam)] += offset_m
         self.mu0, self.muinf, self.tau = args.drift_mu0, args.drift_muinf, args.drift_tau
+        self.tail_p, self.tail_half, self.tail_sigma = args.tail_probability, args.tail_half_signal, args.tail_sigma
 
     def truth(self):
         return {"snr_k_m": self.snr_k, "detect_threshold_photons": self.threshold, "detect_width": self.width,
                 "divergence_rad": self.divergence,
                 "beam_offsets_m": self.beam_offset_m.tolist(), "beam_scales": self.beam_scale.tolist(),
-                "drift_mu0_m": self.mu0, "drift_muinf_m": self.muinf, "drift_tau_s": self.tau}
+                "drift_mu0_m": self.mu0, "drift_muinf_m": self.muinf, "drift_tau_s": self.tau,
+                "tail_probability": self.tail_p, "tail_half_signal_photons": self.tail_half,
+                "tail_sigma_m": self.tail_sigma}
+
+    def tail_m(self, radiometry, rng):
+        """E2's tails: the extra range error of the returns drawn into the wider Gaussian (none drawn
+        when off, so that the other effects' captures stay as they were)."""
+        if self.tail_p <= 0:
+            return 0.0
+        share = self.tail_p / (1.0 + radiometry.signal / self.tail_half)
+        in_tail = rng.random(share.shape) < share
+        return np.where(in_tail, rng.standard_normal(share.shape) * self.tail_sigma, 0.0)
 
     def variance_m2(self, true_m, cos_incidence, radiometry):
         """E4: the footprint's, (r tan(theta) gamma / 2.355)^2; E2: k^2 (S + B) / S^2."""
@@ -456,6 +471,7 @@ def measured_ranges_mm(true_mm, cos_incidence, radiometry, rng, sigma0, slope, h
     true_m = true_mm / 1000.0
     sigma_m = np.sqrt((sigma0 + slope * true_m) ** 2 + hidden.variance_m2(true_m, cos_incidence, radiometry))
     noisy_m = hidden.mean_m(true_m, frame) + rng.standard_normal(true_mm.shape) * sigma_m
+    noisy_m = noisy_m + hidden.tail_m(radiometry, rng)
     return np.clip(np.rint(noisy_m * 1000.0), 1, 0x7FFFF).astype(np.uint32)
 
 
@@ -584,6 +600,9 @@ def parse_args():
     p.add_argument("--detect-threshold", type=float, default=0.0, help="E5: S_th, photons (0: off)")
     p.add_argument("--detect-width", type=float, default=0.3, help="E5: logistic width in ln S")
     p.add_argument("--divergence", type=float, default=0.0, help="E4: beam divergence (FWHM), rad")
+    p.add_argument("--tail-probability", type=float, default=0.0, help="E2's tails: share as S -> 0")
+    p.add_argument("--tail-half-signal", type=float, default=10.0, help="E2's tails: S where the share halves")
+    p.add_argument("--tail-sigma", type=float, default=0.1, help="E2's tails: their extra spread, m")
     p.add_argument("--beam-offset-sigma", type=float, default=0.0, help="E10: per-beam offsets' sd, m")
     p.add_argument("--beam-scale-sigma", type=float, default=0.0, help="E10: per-beam scales' sd")
     p.add_argument("--beam-seed", type=int, default=7, help="E10: the unit")

@@ -1,7 +1,8 @@
 #pragma once
 // How likely one measured pixel is under the effect chain's prediction (lidar-physics.md 3.5): the
 // detection term, and for a return the interval probability of its range bin under the truncated
-// Gaussian mixed with a uniform outlier component. Measured ranges are integers of the wire's step
+// Gaussian (with an edge partner's and a wider tail's components) mixed with a uniform outlier
+// component. Measured ranges are integers of the wire's step
 // (1 mm, or 8 mm for RNG15), so every likelihood here is a probability, never a density: the NLLs of
 // pixels, bins and profiles add up and compare on one scale.
 #include <span>
@@ -23,6 +24,8 @@ struct RangeModel {
   double partner_offset_m = 0.0;
   double partner_sigma_m = 0.0;  // with this sigma (0: sigma_m)
   double partner_sigma() const { return partner_sigma_m > 0.0 ? partner_sigma_m : sigma_m; }
+  double tail_mix = 0.0;  // E2's tails: this share of the pixel's own returns is N(mean_m, tail_sigma_m^2)
+  double tail_sigma_m = 0.0;
 };
 
 // The chain's prediction for an ideal return at ideal_range_m, on a wire with the given range step.

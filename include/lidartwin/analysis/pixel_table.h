@@ -59,6 +59,8 @@ struct PixelTable {
   std::vector<float> partner_mix;  // E6: weight and offset of the component at the partner's range
   std::vector<float> partner_offset_m;
   std::vector<float> partner_sigma_m;  // 0: predicted_sigma_m
+  std::vector<float> tail_mix;         // E2's tails: the share of the pixel's own returns in them
+  std::vector<float> tail_sigma_m;     // and their sigma
   std::vector<float> expected_signal;
   std::vector<float> expected_near_ir;
   std::vector<float> window_min_m;

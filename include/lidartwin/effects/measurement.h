@@ -97,6 +97,11 @@ struct Prediction {
   double partner_offset_m = 0.0;
   double partner_extra_variance_m2 = 0.0;
   double p_second = 0.0;
+  // E2's tails (signal_outliers): with probability tail_mix a detected return's range is drawn
+  // about the same mean with tail_extra_variance_m2 more variance (what later effects add to
+  // variance_m2 applies to both components).
+  double tail_mix = 0.0;
+  double tail_extra_variance_m2 = 0.0;
   // Photon (shot) noise: the variances of the reported SIGNAL and NEAR_IR about the expected
   // values above (photons^2; 0 = reported exactly).
   double signal_variance = 0.0;
