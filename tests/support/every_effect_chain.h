@@ -10,6 +10,7 @@ inline nlohmann::json every_effect_chain(const nlohmann::json& range_noise) {
       {{"name", "radiometry"}},
       {{"name", "mixed_pixels"}},
       {{"name", "signal_precision"}, {"k_m", 0.05}},
+      {{"name", "signal_outliers"}, {"probability", 0.05}},
       {{"name", "range_walk"}, {"walk_m", 0.005}},
       {{"name", "incidence"}},
       {{"name", "beam_calibration"}, {"offset_sigma_m", 0.01}},

@@ -1,6 +1,7 @@
 #pragma once
 // The shipped datasheet profiles' chain without the physical effects they enable beyond Table I
-// (mixed pixels, E6; incidence, E4; signal-driven detection, E5; signal-dependent precision, E2):
+// (mixed pixels, E6; incidence, E4; signal-driven detection, E5; signal-dependent precision, E2, and
+// its tails):
 // radiometry, the datasheet's sigma(r), range limits and quantization. The baseline of the fingerprint and analysis
 // tests, which add one effect to it and look for that effect alone. (Its own namespace: cli_compare_test has a function
 // named lidartwin.)
@@ -19,7 +20,8 @@ inline void keep_table_effects(nlohmann::json& effects) {
   nlohmann::json kept = nlohmann::json::array();
   for (const auto& effect : effects) {
     const auto& name = effect.at("name");
-    if (name != "incidence" && name != "dropout" && name != "signal_precision" && name != "mixed_pixels") {
+    if (name != "incidence" && name != "dropout" && name != "signal_precision" && name != "signal_outliers" &&
+        name != "mixed_pixels") {
       kept.push_back(effect);
     }
   }
@@ -39,7 +41,7 @@ inline std::filesystem::path table_profile(const std::string& shipped) {
   return path;
 }
 
-// profiles/<shipped>.json as it was before real captures refitted it: without E2 and E6, the
+// profiles/<shipped>.json as it was before real captures refitted it: without E2 (and its tails) and E6, the
 // radiometry's default ambient light and the incidence effect at the datasheet's divergence. What a
 // user of the datasheet alone would compare real data with (the "old table").
 inline std::filesystem::path datasheet_only_profile(const std::string& shipped) {
@@ -50,7 +52,7 @@ inline std::filesystem::path datasheet_only_profile(const std::string& shipped) 
   nlohmann::json kept = nlohmann::json::array();
   for (const auto& effect : profile.at("effects")) {
     const auto& name = effect.at("name");
-    if (name == "signal_precision" || name == "mixed_pixels") continue;
+    if (name == "signal_precision" || name == "signal_outliers" || name == "mixed_pixels") continue;
     if (name == "radiometry") {
       kept.push_back({{"name", "radiometry"}});
     } else if (name == "incidence") {
