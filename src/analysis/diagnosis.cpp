@@ -52,10 +52,10 @@ struct Search {
   mutable PixelTable scratch;
 };
 
-// What a round kept: an added candidate, or a law of another form in place of the noise law
-// (`replaces`: its index), with its spec (for the joint refit and the shared-misfit tests).
 constexpr std::string_view kTails = "signal_outliers";  // E2's tails (tails_apply)
 
+// What a round kept: an added candidate, or a law of another form in place of the noise law
+// (`replaces`: its index), with its spec (for the joint refit and the shared-misfit tests).
 struct Step {
   Candidate candidate;
   CandidateSpec spec;
