@@ -360,28 +360,36 @@ TEST(CompareRealCapture, StaticDiagnosisOfAMotionlessOs0128NamesTheTailsOfWeakRe
 
 namespace {
 
-// A moving capture the independent generator wrote (tests/tools/independent_capture.py: its own
-// packets, radiometry and noise, from the protocol and physics documents alone), six walls of
-// different reflectivity, with signal-dependent precision (E2) hidden: map mode, without the
-// room's mesh, names E2 as the scene-based diagnosis does, with k near the generator's.
-TEST(CompareMapIndependentCapture, MapModeNamesTheHiddenSignalDependentPrecision) {
-  const fs::path dir = temp("map_independent_e2");
+// The independent generator's room seen from a moving sensor (1 m/s, turning 20 degrees a second,
+// 8 frames, seed 3) with `hidden` effects, diagnosed in map mode against os1-32-paper, without
+// the room's mesh: the report's diagnosis.
+void diagnose_moving_capture(const std::string& name, const std::string& hidden, nlohmann::json& diagnosis) {
+  const fs::path dir = temp(name);
   const std::string generate = "/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                               " --frames 8 --seed 3 --velocity 1 0 0 --yaw-rate 20 --snr-k 0.4"
-                               " --wall-reflectivity 0.08 0.15 0.3 0.5 0.7 0.95 > /dev/null";
+                               " --frames 8 --seed 3 --velocity 1 0 0 --yaw-rate 20 " + hidden + " > /dev/null";
   ASSERT_EQ(std::system(generate.c_str()), 0) << generate;
   const fs::path out = dir / "map";
   const CliRun r = run_cli("compare --map --diagnose --capture " + (dir / "capture.pcap").string() + " --metadata " +
                            (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
                            " --profile os1-32-paper --out " + out.string() + " --no-plots");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  const nlohmann::json report = read_json(out / "report.json");
-  const auto& selected = report["diagnosis"]["selected"];
-  ASSERT_FALSE(selected.empty()) << report["diagnosis"].dump();
+  diagnosis = read_json(out / "report.json")["diagnosis"];
+  fs::remove_all(dir);
+}
+
+// A moving capture the independent generator wrote (tests/tools/independent_capture.py: its own
+// packets, radiometry and noise, from the protocol and physics documents alone), six walls of
+// different reflectivity, with signal-dependent precision (E2) hidden: map mode, without the
+// room's mesh, names E2 as the scene-based diagnosis does, with k near the generator's.
+TEST(CompareMapIndependentCapture, MapModeNamesTheHiddenSignalDependentPrecision) {
+  nlohmann::json diagnosis;
+  ASSERT_NO_FATAL_FAILURE(diagnose_moving_capture(
+      "map_independent_e2", "--snr-k 0.4 --wall-reflectivity 0.08 0.15 0.3 0.5 0.7 0.95", diagnosis));
+  const auto& selected = diagnosis["selected"];
+  ASSERT_FALSE(selected.empty()) << diagnosis.dump();
   EXPECT_EQ(selected[0]["effect"], "signal_precision");
   ASSERT_TRUE(selected[0]["params"].contains("k_m")) << selected[0].dump();
   EXPECT_NEAR(selected[0]["params"]["k_m"]["value"].get<double>(), 0.4, 0.06) << selected[0].dump();
-  fs::remove_all(dir);
 }
 
 // The generator's E2 tails (30 % of the weakest returns, fewer past 100 photons, 10 cm wider) on
@@ -389,25 +397,17 @@ TEST(CompareMapIndependentCapture, MapModeNamesTheHiddenSignalDependentPrecision
 // against each other and the map's own error (probability 0.13, half at 389 photons, 7.4 cm here):
 // the tails' width is asserted to the centimetre's order, not to its interval.
 TEST(CompareMapIndependentCapture, MapModeNamesTheTailsOfWeakReturns) {
-  const fs::path dir = temp("map_independent_tails");
-  const std::string generate = "/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                               " --frames 8 --seed 3 --velocity 1 0 0 --yaw-rate 20 --tail-probability 0.3"
-                               " --tail-half-signal 100 --tail-sigma 0.1"
-                               " --wall-reflectivity 0.02 0.05 0.1 0.3 0.6 0.9 > /dev/null";
-  ASSERT_EQ(std::system(generate.c_str()), 0) << generate;
-  const fs::path out = dir / "map";
-  const CliRun r = run_cli("compare --map --diagnose --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                           (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
-                           " --profile os1-32-paper --out " + out.string() + " --no-plots");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const nlohmann::json report = read_json(out / "report.json");
-  const auto& selected = report["diagnosis"]["selected"];
-  ASSERT_EQ(selected.size(), 1u) << report["diagnosis"].dump();
+  nlohmann::json diagnosis;
+  ASSERT_NO_FATAL_FAILURE(diagnose_moving_capture(
+      "map_independent_tails",
+      "--tail-probability 0.3 --tail-half-signal 100 --tail-sigma 0.1 --wall-reflectivity 0.02 0.05 0.1 0.3 0.6 0.9",
+      diagnosis));
+  const auto& selected = diagnosis["selected"];
+  ASSERT_EQ(selected.size(), 1u) << diagnosis.dump();
   EXPECT_EQ(selected[0]["effect"], "signal_outliers");
   const double sigma = selected[0]["params"]["sigma_m"]["value"].get<double>();
   EXPECT_GT(sigma, 0.05);
   EXPECT_LT(sigma, 0.15);
-  fs::remove_all(dir);
 }
 
 // The same generator with two badly calibrated beams (E10: beam 40 reads 30 mm long, beam 10 20 mm
@@ -416,19 +416,11 @@ TEST(CompareMapIndependentCapture, MapModeNamesTheTailsOfWeakReturns) {
 // reference surface is made of other frames' points of the beam itself and its neighbours, so it
 // carries part of the beam's own offset, and the neighbours see a share of it with the other sign.
 TEST(CompareMapIndependentCapture, MapModeNamesTwoBadlyCalibratedBeams) {
-  const fs::path dir = temp("map_independent_e10");
-  const std::string generate = "/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                               " --frames 8 --seed 3 --velocity 1 0 0 --yaw-rate 20"
-                               " --beam-offset 40 0.03 --beam-offset 10 -0.02 > /dev/null";
-  ASSERT_EQ(std::system(generate.c_str()), 0) << generate;
-  const fs::path out = dir / "map";
-  const CliRun r = run_cli("compare --map --diagnose --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                           (dir / "metadata.json").string() + " --pose " + (dir / "pose.tum").string() +
-                           " --profile os1-32-paper --out " + out.string() + " --no-plots");
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const nlohmann::json report = read_json(out / "report.json");
-  const auto& selected = report["diagnosis"]["selected"];
-  ASSERT_FALSE(selected.empty()) << report["diagnosis"].dump();
+  nlohmann::json diagnosis;
+  ASSERT_NO_FATAL_FAILURE(
+      diagnose_moving_capture("map_independent_e10", "--beam-offset 40 0.03 --beam-offset 10 -0.02", diagnosis));
+  const auto& selected = diagnosis["selected"];
+  ASSERT_FALSE(selected.empty()) << diagnosis.dump();
   EXPECT_EQ(selected[0]["effect"], "beam_calibration");
   std::string longest, shortest;
   double most = 0.0, least = 0.0, others = 0.0;
@@ -446,7 +438,6 @@ TEST(CompareMapIndependentCapture, MapModeNamesTwoBadlyCalibratedBeams) {
   EXPECT_LT(least, 0.5 * -0.02);
   EXPECT_GT(least, 1.1 * -0.02);
   EXPECT_LT(others, 0.4 * 0.03) << selected[0]["params"].dump();
-  fs::remove_all(dir);
 }
 
 }  // namespace

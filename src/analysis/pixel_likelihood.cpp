@@ -58,6 +58,13 @@ double range_cdf(const RangeModel& m, double x, double gaussian_mass) {
   return std::clamp((1.0 - m.outlier_mix) * gaussian + m.outlier_mix * uniform, 0.0, 1.0);
 }
 
+// The midpoint rule's Taylor corrections for a narrow interval of width h (in sigmas) centred at c:
+// its probability is phi(c) h times this.
+double midpoint_correction(double c, double h) {
+  const double c2 = c * c, h2 = h * h;
+  return 1.0 + (c2 - 1.0) * h2 / 24.0 + (c2 * c2 - 6.0 * c2 + 3.0) * h2 * h2 / 1920.0;
+}
+
 double normal_pdf(double x) {
   return std::isfinite(x) ? std::exp(-0.5 * x * x) / std::sqrt(2.0 * std::numbers::pi) : 0.0;
 }
@@ -207,14 +214,10 @@ std::optional<double> tail_pixel_nll(const RangeModel& m, double measured_range_
   const double h = m.step_m / m.sigma_m, c = (measured_range_m - m.mean_m) / m.sigma_m;
   if (!(h > 1e-280 && h <= kNarrowZ && std::abs(c) * h <= 0.5)) return std::nullopt;
   const double k = m.tail_sigma_m / m.sigma_m, ht = h / k, ct = c / k;
-  const auto poly = [](double cc, double hh) {
-    const double c2 = cc * cc, h2 = hh * hh;
-    return 1.0 + (c2 - 1.0) * h2 / 24.0 + (c2 * c2 - 6.0 * c2 + 3.0) * h2 * h2 / 1920.0;
-  };
   const double t = std::min(m.tail_mix, 1.0);
-  const double p =
-      ((1.0 - t) * std::exp(-0.5 * c * c) * h * poly(c, h) + t * std::exp(-0.5 * ct * ct) * ht * poly(ct, ht)) /
-      std::sqrt(2.0 * std::numbers::pi);
+  const double p = ((1.0 - t) * std::exp(-0.5 * c * c) * h * midpoint_correction(c, h) +
+                    t * std::exp(-0.5 * ct * ct) * ht * midpoint_correction(ct, ht)) /
+                   std::sqrt(2.0 * std::numbers::pi);
   const double nll = -std::log(m.p_detect) - std::log(p);
   if (!(p > 0.0) || !(nll <= -std::log(kImpossible))) return std::nullopt;
   return nll;
@@ -246,8 +249,7 @@ double normal_interval(double a, double b) {
   // relative error is about (c h)^6 / 3e5 (< 1e-7 for |c| h <= 0.5): one exp instead of two erfc,
   // in the likelihood the diagnosis' fits evaluate millions of times. Far out, erfc below.
   if (const double h = b - a, c = 0.5 * (a + b); h <= kNarrowZ && std::abs(c) * h <= 0.5) {
-    const double c2 = c * c, h2 = h * h;
-    return normal_pdf(c) * h * (1.0 + (c2 - 1.0) * h2 / 24.0 + (c2 * c2 - 6.0 * c2 + 3.0) * h2 * h2 / 1920.0);
+    return normal_pdf(c) * h * midpoint_correction(c, h);
   }
   // Take the difference on the side of the tail the interval lies in, where erfc keeps its digits.
   if (a >= 0.0) return 0.5 * (std::erfc(a * kSqrtHalf) - std::erfc(b * kSqrtHalf));
