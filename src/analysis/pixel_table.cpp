@@ -19,6 +19,7 @@
 #include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/column_caster.h"
 #include "lidartwin/error.h"
+#include "lidartwin/frame/cast_stage.h"
 #include "lidartwin/frame/wire_context.h"
 #include "lidartwin/packet/lidar_packet.h"
 
@@ -33,14 +34,6 @@ struct ObservedColumn {
 
 float channel_value(const Scan& scan, ChannelField field, int m, int r, float scale) {
   return scan.has(field) ? static_cast<float>(scan.at(field, m, r)) * scale : 0.0f;
-}
-
-// Whether two neighbouring beams' ideal ranges lie on different surfaces: one hits and the other
-// does not, or their ranges differ by a depth step (the caster's rule for vertical edges).
-bool depth_step(float a, float b) {
-  const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
-  if (hit_a != hit_b) return true;
-  return hit_a && std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b));
 }
 
 // Multi-source breadth-first chessboard distance over a W x H grid (columns wrap around: a frame is
@@ -95,51 +88,6 @@ size_t index_frame(const std::vector<ObservedColumn>& observed, size_t f, size_t
     }
   }
   return last;
-}
-
-// Every pixel's edge partner (E6) from its neighbours in the frame's grid, as the forward model
-// finds them from the columns it casts (choose_edge_partner): always, so that the diagnosis can
-// test mixed pixels on a profile without them.
-void find_partners(PixelTable& t, const std::vector<ObservedColumn>& observed, size_t frames, int width, int height,
-                   const BeamGeometry& geometry) {
-  std::vector<int64_t> index(static_cast<size_t>(width * height));
-  const auto ideal = [&](int64_t row) {
-    IdealReturn out;
-    if (row < 0) return out;
-    const auto i = static_cast<size_t>(row);
-    out.range_m = t.ideal_range_m[i];
-    out.reflectivity = t.material_reflectivity[i];
-    out.cos_incidence = t.cos_incidence[i];
-    return out;
-  };
-  size_t first = 0;
-  for (size_t f = 0; f < frames; ++f) {
-    const size_t last = index_frame(observed, f, first, height, index);
-    for (size_t c = first; c < last; ++c) {
-      const int m = observed[c].column;
-      for (int r = 0; r < height; ++r) {
-        const auto at = [&](int mm, int rr) {
-          return index[static_cast<size_t>(((mm + width) % width) * height + rr)];
-        };
-        const IdealReturn up = r > 0 ? ideal(at(m, r - 1)) : IdealReturn{};
-        const IdealReturn down = r + 1 < height ? ideal(at(m, r + 1)) : IdealReturn{};
-        const IdealReturn left = ideal(at(m - 1, r)), right = ideal(at(m + 1, r));
-        const std::array<Neighbour, 4> neighbours{{
-            {&up, r > 0 ? geometry.row_spacing_rad(r - 1) : 0.0f},
-            {&down, r + 1 < height ? geometry.row_spacing_rad(r) : 0.0f},
-            {&left, geometry.column_spacing_rad(r)},
-            {&right, geometry.column_spacing_rad(r)},
-        }};
-        const auto i = observed[c].first_pixel + static_cast<size_t>(r);
-        IdealReturn pixel = ideal(static_cast<int64_t>(i));
-        choose_edge_partner(pixel, neighbours);
-        t.partner_range_m[i] = pixel.partner_range_m;
-        t.partner_reflectance[i] = pixel.partner_reflectance;
-        t.partner_spacing_rad[i] = pixel.partner_spacing_rad;
-      }
-    }
-    first = last;
-  }
 }
 
 // Edge and retro distances, frame by frame, once every pixel's ideal return is in the table. On
@@ -437,57 +385,70 @@ class ItemProgress {
 };
 
 // Each observed column's beams cast from the column's pose at its own timestamp, and each pixel's
-// measurement, ideal return and prediction written to the table. An item's columns are cast
-// together (ColumnCaster: a frame's 16 aligned neighbours one row per packet), then predicted
-// column by column. Returns whether the chain predicted no spread for a pixel it detects.
-bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedColumn>& observed,
-                      const ColumnCaster& caster, float reach, uint64_t first_stamp, PixelTable& table,
-                      WorkerPool& pool) {
-  const int height = setup.capture.metadata.format.pixels_per_column;
-  constexpr int kColumnsPerItem = static_cast<int>(ColumnCaster::kGroupColumns);
+// measurement, ideal return and prediction written to the table. The capture's frames go through
+// the forward model's cast stage as `record` casts them, a packet's columns per work item: frame
+// f's valid columns are its observed ones, each posed at its own timestamp, its time (E12) counted
+// from the capture's first observed column. Returns whether the chain predicted no spread for a
+// pixel it detects.
+bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedColumn>& observed, const CastStage& cast,
+                      uint64_t first_stamp, PixelTable& table, WorkerPool& pool) {
+  const LidarDataFormat& format = setup.capture.metadata.format;
+  const int width = format.columns_per_frame, height = format.pixels_per_column;
+  const int per_packet = format.columns_per_packet;
+  const int packets = width / per_packet;
+  // first_row[f * width + m]: the table row of frame f's column m's first pixel, -1: not observed.
+  std::vector<int64_t> first_row(setup.capture.frames.size() * static_cast<size_t>(width), -1);
+  for (const ObservedColumn& oc : observed) {
+    first_row[oc.frame * static_cast<size_t>(width) + static_cast<size_t>(oc.column)] =
+        static_cast<int64_t>(oc.first_pixel);
+  }
   struct Scratch {
-    std::vector<std::vector<IdealReturn>> ideal;  // [column of the item][row]
-    std::vector<Pose> poses;
-    std::vector<ColumnCaster::Column> cast;
+    FrameColumns columns;  // the frame's columns; a worker fills those of its packet
+    CastStage::Block block;
   };
-  std::vector<Scratch> scratch(static_cast<size_t>(pool.size()),
-                               Scratch{std::vector<std::vector<IdealReturn>>(
-                                           kColumnsPerItem, std::vector<IdealReturn>(static_cast<size_t>(height))),
-                                       std::vector<Pose>(kColumnsPerItem),
-                                       {}});
-  const int items = static_cast<int>((observed.size() + kColumnsPerItem - 1) / kColumnsPerItem);
+  std::vector<Scratch> scratch;
+  for (int w = 0; w < pool.size(); ++w) {
+    scratch.push_back({FrameColumns{0, std::vector<Pose>(static_cast<size_t>(width)),
+                                    std::vector<uint8_t>(static_cast<size_t>(width)),
+                                    std::vector<double>(static_cast<size_t>(width))},
+                       cast.make_block(static_cast<size_t>(per_packet))});
+  }
+  const int items = static_cast<int>(setup.capture.frames.size()) * packets;
   std::atomic<bool> no_spread{false};
   ItemProgress progress(setup.progress, items);
   pool.run(items, [&](int worker, int item) {
     Scratch& s = scratch[static_cast<size_t>(worker)];
-    const size_t begin = static_cast<size_t>(item) * kColumnsPerItem;
-    const size_t end = std::min(observed.size(), begin + kColumnsPerItem);
-    s.cast.clear();
-    for (size_t i = begin; i < end; ++i) {
-      const ObservedColumn& oc = observed[i];
-      const uint64_t stamp = setup.capture.frames[oc.frame].scan.timestamp_ns[static_cast<size_t>(oc.column)];
-      Pose& pose = s.poses[i - begin] = setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s);
-      s.cast.push_back({oc.column, &pose, s.ideal[i - begin]});
+    const auto f = static_cast<size_t>(item / packets);
+    const int begin = (item % packets) * per_packet, end = begin + per_packet;
+    const Scan& scan = setup.capture.frames[f].scan;
+    const int64_t* rows = &first_row[f * static_cast<size_t>(width)];
+    s.columns.frame_index = f;
+    bool any = false;
+    for (int m = begin; m < end; ++m) {
+      const auto column = static_cast<size_t>(m);
+      s.columns.observed[column] = rows[column] >= 0 ? 1 : 0;
+      if (!s.columns.observed[column]) continue;
+      any = true;
+      const uint64_t stamp = scan.timestamp_ns[column];
+      s.columns.poses[column] = setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s);
+      s.columns.times_s[column] = static_cast<double>(stamp - first_stamp) * 1e-9;
     }
-    caster.cast(s.cast);
-    for (size_t i = begin; i < end; ++i) {
-      const ObservedColumn& oc = observed[i];
-      const Scan& scan = setup.capture.frames[oc.frame].scan;
-      const int m = oc.column;
-      const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
-      const std::vector<IdealReturn>& ideal = s.ideal[i - begin];
-      ColumnContext column_context = table.context;
-      column_context.frame = oc.frame;
-      column_context.column = static_cast<uint32_t>(m);
-      column_context.time_s = static_cast<double>(stamp - first_stamp) * 1e-9;
+    if (any) cast.cast(s.columns, begin, end, s.block);
+    for (int m = begin; m < end && any; ++m) {
+      if (!s.columns.observed[static_cast<size_t>(m)]) continue;
+      const ColumnContext context = cast.context(s.columns, m);
+      const std::span<const IdealReturn> ideal = s.block.column(m);
       for (int r = 0; r < height; ++r) {
-        const size_t p = oc.first_pixel + static_cast<size_t>(r);
-        const IdealReturn& hit = ideal[static_cast<size_t>(r)];
-        const Prediction prediction = setup.chain.predict(hit, column_context);
-        const RangeModel model = range_model(prediction, hit.range_m, table.context.range_step_m, reach);
-        if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
-        table.set_measured(p, oc.frame, scan, m, r);
+        const size_t p = static_cast<size_t>(rows[m]) + static_cast<size_t>(r);
+        table.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
+        IdealReturn hit = ideal[static_cast<size_t>(r)];
         table.set_ideal(p, hit);
+        // Predicted at the incidence the table holds (in degrees, PixelTable::set_incidence), so
+        // that a fit predicting the pixel again from the table starts from the same figures.
+        hit.cos_incidence = table.cos_incidence[p];
+        const Prediction prediction = setup.chain.predict(hit, context);
+        const RangeModel model = range_model(prediction, hit.range_m, table.context.range_step_m, cast.reach_m());
+        if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
         table.set_prediction(p, prediction, model);
       }
     }
@@ -498,35 +459,29 @@ bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedCo
 
 }  // namespace
 
-// The phases: which columns, cast and predict each pixel, the neighbourhood features (edge
-// partners, distances to edges and retroreflectors), and the prediction again where the chain reads
-// the partners.
+// The phases: which columns, cast (with edge partners) and predict each pixel, the neighbourhood
+// features (distances to edges and retroreflectors).
 PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   const Metadata& metadata = setup.capture.metadata;
   const LidarDataFormat& format = metadata.format;
   const PacketFormat packets(format);
-  const int width = format.columns_per_frame;
-  const int height = format.pixels_per_column;
-  const BeamGeometry geometry(metadata.beams, width);
-  const float reach = cast_reach_m(setup.max_range_m, packets);  // as the renderer casts
-  const ColumnCaster caster(setup.scene, geometry, reach);
+  const BeamGeometry geometry(metadata.beams, format.columns_per_frame);
 
   const std::vector<ObservedColumn> observed = observed_columns(setup);
   PixelTable table;
-  table.resize(observed.size() * static_cast<size_t>(height));
+  table.resize(observed.size() * static_cast<size_t>(format.pixels_per_column));
   table.context = wire_context(packets, analysis_detail::signal_gain_of(metadata));
   const uint64_t first_stamp = first_column_stamp(setup.capture, observed);
   table.start_s = observed.empty() ? 0.0 : static_cast<double>(first_stamp) * 1e-9;
-  const bool no_spread = cast_and_predict(setup, observed, caster, reach, first_stamp, table, pool);
-  if (no_spread) {
+  const CastStage cast(setup.scene, geometry, cast_reach_m(setup.max_range_m, packets), setup.chain, table.context,
+                       CastStage::Use::kPredict);
+  if (cast_and_predict(setup, observed, cast, first_stamp, table, pool)) {
     throw InputError(
         "--profile: its effect chain predicts no range spread (variance 0) for pixels it detects, so no measured "
         "range can be scored against it; compare needs a profile with a range noise effect (e.g. "
         "range_noise_linear or range_noise_piecewise)");
   }
-  find_partners(table, observed, setup.capture.frames.size(), width, height, geometry);
-  mark_neighbourhoods(table, observed, setup.capture.frames.size(), width, height);
-  if (setup.chain.needs_edge_partners()) table = repredicted(table, setup.chain, &pool);  // now with partners
+  mark_neighbourhoods(table, observed, setup.capture.frames.size(), format.columns_per_frame, format.pixels_per_column);
   return table;
 }
 

@@ -20,9 +20,6 @@ constexpr int kLanes = RayStrip::kColumns;
 static_assert(kLanes == caster_detail::kLanes);
 constexpr size_t kMaxRows = 128;  // beams of the largest Ouster sensor
 
-// A depth step between two hits: farther apart than 0.3 m or 5 % of the farther range.
-bool depth_step(float a, float b) { return std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b)); }
-
 // world_from_sensor as plain floats: rotation row-major, then translation.
 struct WorldTransform {
   float r[9] = {};
@@ -148,6 +145,12 @@ void read_hits(const RTCRayHit16& packet, const ColumnCaster::SurfaceOptics* opt
 }
 
 }  // namespace
+
+bool depth_step(float a, float b) {
+  const bool hit_a = a > 0.0f, hit_b = b > 0.0f;
+  if (hit_a != hit_b) return true;
+  return hit_a && std::abs(a - b) > std::max(0.3f, 0.05f * std::max(a, b));
+}
 
 void mark_vertical_edges(std::span<IdealReturn> column) {
   const size_t n = column.size();

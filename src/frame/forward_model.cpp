@@ -1,19 +1,29 @@
-// The forward model: the one place that stamps columns, builds packet headers and encodes frames.
+// The forward model: each packet's columns located, stamped, cast, through the effect chain and
+// encoded, on one worker.
 #include "lidartwin/frame/forward_model.h"
 
 #include <atomic>
 #include <cassert>
 #include <optional>
 
+#include "frame/channel_encoder.h"
 #include "lidartwin/frame/imu_model.h"
 #include "lidartwin/frame/packet_plan.h"
+#include "lidartwin/frame/wire_context.h"
 
 namespace lidartwin {
 
 using PacketReady = ForwardModel::PacketReady;
 
 struct ForwardModel::Impl {
-  Impl(const Scene& scene, const PoseSource& pose_source, ForwardModelSetup model_setup, WorkerPool& pool)
+  // One worker's buffers, so the hot loop allocates nothing: the cast of a packet's columns, and
+  // one column of measurements (the effect chain, column by column).
+  struct Scratch {
+    CastStage::Block block;
+    MeasuredColumn measured;
+  };
+
+  Impl(const Scene& scene, const PoseSource& pose_source, ForwardModelSetup model_setup, WorkerPool& worker_pool)
       : poses(pose_source),
         clock{model_setup.render.format.columns_per_frame, model_setup.render.format.fps, model_setup.origin_ns,
               model_setup.pose_origin_s},
@@ -21,15 +31,31 @@ struct ForwardModel::Impl {
         prod_sn(model_setup.prod_sn),
         packets(model_setup.render.format),  // validates the format first
         sensor_from_imu(lidartwin::sensor_from_imu(model_setup.render.beams.imu_to_sensor)),
-        renderer(scene, std::move(model_setup.render), pool),
+        render(std::move(model_setup.render)),
+        geometry(render.beams, render.format.columns_per_frame),
+        cast(scene, geometry, cast_reach_m(render.max_range_m, packets), render.chain, column_context(),
+             CastStage::Use::kSimulate),
+        encoder(packets),
+        pool(worker_pool),
         firsts(packets_to_send(packets.format())),
         per_column_poses(model_setup.per_column_poses) {
+    assert(render.beams.pixels_per_column() == render.format.pixels_per_column);
     const LidarDataFormat& f = packets.format();
     valid_status = f.udp_profile_lidar == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;  // 4.2, 4.4
     index_of_first.assign(static_cast<size_t>(f.columns_per_frame / f.columns_per_packet), -1);
     for (size_t i = 0; i < firsts.size(); ++i) {
       index_of_first[static_cast<size_t>(firsts[i] / f.columns_per_packet)] = static_cast<int>(i);
     }
+    for (int w = 0; w < pool.size(); ++w) {
+      scratch.push_back({cast.make_block(static_cast<size_t>(f.columns_per_packet)),
+                         MeasuredColumn(static_cast<size_t>(f.pixels_per_column))});
+    }
+  }
+
+  ColumnContext column_context() const {
+    ColumnContext context = wire_context(packets, render.signal_gain);
+    context.seed = render.seed;
+    return context;
   }
 
   const LidarDataFormat& format() const { return packets.format(); }
@@ -77,29 +103,48 @@ struct ForwardModel::Impl {
     }
   }
 
-  // Packets [begin, end) whose columns are contiguous.
+  // Packets [begin, end) whose columns are contiguous, one packet per work item: the worker that
+  // takes a packet carries it through the whole model and hands its bytes on, so packets leave in
+  // parallel with the rest of the frame's casting.
   size_t render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out, const PacketReady& ready) const {
     const int cpp = columns_per_packet();
-    const int first = firsts[begin];
-    const int last = firsts[end - 1] + cpp;
-    assert(last - first == static_cast<int>(end - begin) * cpp);
+    assert(firsts[end - 1] + cpp - firsts[begin] == static_cast<int>(end - begin) * cpp);
+    assert(out.scan.width == format().columns_per_frame &&
+           out.columns.poses.size() == static_cast<size_t>(out.scan.width));
     out.columns.frame_index = frame;
     const PoseSpan span = poses.span();  // one answer for the whole run: a live span may grow meanwhile
     const PacketHeader header = header_of(frame);
-    // Each packet's columns are located and stamped by the worker that casts them, and the packet
-    // is encoded by it as soon as its pixels are in.
     std::atomic<size_t> unposed{0};
-    const auto prepare = [&](int block_begin, int block_end) {
-      unposed.fetch_add(locate_columns(frame, block_begin, block_end, span, out.columns), std::memory_order_relaxed);
-      stamp_columns(frame, block_begin, block_end, &out.columns.observed, out.scan);
-    };
-    const auto encode = [&](int block_begin, int) {
-      const int index = index_of_first[static_cast<size_t>(block_begin / cpp)];
-      packets.encode(header, out.scan, block_begin, slot(out, static_cast<size_t>(index)));
+    pool.run(static_cast<int>(end - begin), [&](int worker, int item) {
+      const int first = firsts[begin] + item * cpp;
+      Scratch& s = scratch[static_cast<size_t>(worker)];
+      unposed.fetch_add(render_packet(frame, first, span, out, s), std::memory_order_relaxed);
+      const int index = index_of_first[static_cast<size_t>(first / cpp)];
+      packets.encode(header, out.scan, first, slot(out, static_cast<size_t>(index)));
       if (ready) ready(static_cast<size_t>(index));
-    };
-    renderer.render(out.columns, first, last, out.scan, encode, prepare);
+    });
     return unposed.load();
+  }
+
+  // The columns of the packet that starts at column `first`, through the forward model: where
+  // each was observed from, its timestamp and status, the cast (all its columns before any goes
+  // through the chain: Embree's traversal and the chain's tables each stay in cache across the
+  // packet instead of evicting each other column by column), the effect chain, protocol units.
+  // Returns the columns in the window that had no pose.
+  size_t render_packet(uint64_t frame, int first, const PoseSpan& span, EncodedFrame& out, Scratch& s) const {
+    const int last = first + columns_per_packet();
+    const size_t unposed = locate_columns(frame, first, last, span, out.columns);
+    stamp_columns(frame, first, last, &out.columns.observed, out.scan);
+    cast.cast(out.columns, first, last, s.block);
+    for (int m = first; m < last; ++m) {
+      if (!out.columns.observed[static_cast<size_t>(m)]) {  // 6.4: zero pixels
+        encoder.clear(m, out.scan);
+        continue;
+      }
+      render.chain.simulate(s.block.column(m), cast.context(out.columns, m), s.measured);
+      encoder.write(s.measured, m, out.scan);
+    }
+    return unposed;
   }
 
   const PoseSource& poses;
@@ -108,7 +153,12 @@ struct ForwardModel::Impl {
   uint64_t prod_sn;
   PacketFormat packets;
   Pose sensor_from_imu;
-  FrameRenderer renderer;
+  RenderSetup render;
+  BeamGeometry geometry;
+  CastStage cast;
+  frame_detail::ChannelEncoder encoder;
+  WorkerPool& pool;
+  mutable std::vector<Scratch> scratch;  // one per pool worker
   std::vector<int> firsts;
   std::vector<int> index_of_first;  // packet slot in the frame -> index in firsts, -1 = not sent
   uint32_t valid_status = 1;
@@ -128,7 +178,8 @@ ForwardModel::~ForwardModel() = default;
 
 const LidarDataFormat& ForwardModel::format() const { return impl_->format(); }
 const SensorClock& ForwardModel::clock() const { return impl_->clock; }
-const FrameRenderer& ForwardModel::renderer() const { return impl_->renderer; }
+const BeamGeometry& ForwardModel::geometry() const { return impl_->geometry; }
+float ForwardModel::cast_range_m() const { return impl_->cast.reach_m(); }
 const std::vector<int>& ForwardModel::packet_columns() const { return impl_->firsts; }
 size_t ForwardModel::packet_size() const { return impl_->packets.lidar_packet_size(); }
 

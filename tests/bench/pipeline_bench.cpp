@@ -200,12 +200,11 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
   setup.render = {s.metadata.beams, s.format(), s.profile.max_range_m, chain_of(s), 1, 1.0f};
   setup.pose_origin_s = scenario.poses->start_s();
   const ForwardModel model(s.scene, *scenario.poses, setup, pool);
-  const FrameRenderer& renderer = model.renderer();
   const auto rays =
-      only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m());
-  const auto quad_rays =
-      only_pipeline ? std::vector<RTCRay16>()
-                    : prebuilt_rays(s, *scenario.poses, frames, renderer.cast_range_m(), Packing::kCasterStrips);
+      only_pipeline ? std::vector<RTCRay16>() : prebuilt_rays(s, *scenario.poses, frames, model.cast_range_m());
+  const auto quad_rays = only_pipeline
+                             ? std::vector<RTCRay16>()
+                             : prebuilt_rays(s, *scenario.poses, frames, model.cast_range_m(), Packing::kCasterStrips);
   Rate raw16, raw_quads, raw1, cast, recorded;
   PipelineRate pipe{};
   const auto keep_best = [](Rate& best, const Rate& r) {
@@ -232,7 +231,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
     std::fprintf(stderr, "  repeat %d: (a) %.2f, (c) %.2f, (d) %.2f M/s\n", r, a.wall_per_s * 1e-6,
                  p.pixels.wall_per_s * 1e-6, d.wall_per_s * 1e-6);
     keep_best(raw1, raw_single(s, rays, threads));
-    keep_best(cast, caster_only(s, *scenario.poses, renderer.geometry(), renderer.cast_range_m(), frames, threads));
+    keep_best(cast, caster_only(s, *scenario.poses, model.geometry(), model.cast_range_m(), frames, threads));
   }
   const double real_time = 2048.0 * 128 * 10;  // pixels per second of a real sensor
   std::printf("\n%s: returns %.0f %% of points\n", scenario.name, 100 * pipe.return_share);
@@ -282,7 +281,7 @@ void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int thre
         s.metadata.beams, s.format(), s.profile.max_range_m, EffectChain::from_json(effects, name), 1, 1.0f};
     setup.pose_origin_s = scenario.poses->start_s();
     const ForwardModel model(s.scene, *scenario.poses, setup, pool);
-    if (rays.empty()) rays = prebuilt_rays(s, *scenario.poses, frames, model.renderer().cast_range_m());
+    if (rays.empty()) rays = prebuilt_rays(s, *scenario.poses, frames, model.cast_range_m());
     std::vector<double> ratios;
     for (int r = 0; r < repeats; ++r) {
       const Rate a = raw_packets(s, rays, threads);

@@ -119,8 +119,8 @@ double measure_a_prime() {
   ForwardModelSetup setup;
   setup.render = {metadata.beams, metadata.format, profile.max_range_m, EffectChain(), 1, 1.0f};
   const ForwardModel model(scene, poses, setup, pool);  // for the cast range the daemon uses
-  const auto rays = prebuilt_rays(metadata.beams, metadata.format, poses, {20, 1.0}, model.renderer().cast_range_m(),
-                                  Packing::kCasterStrips);
+  const auto rays =
+      prebuilt_rays(metadata.beams, metadata.format, poses, {20, 1.0}, model.cast_range_m(), Packing::kCasterStrips);
   const int threads = static_cast<int>(std::thread::hardware_concurrency());
   double best = 0;
   for (int repeat = 0; repeat < 3; ++repeat)

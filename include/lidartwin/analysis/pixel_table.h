@@ -44,7 +44,7 @@ struct PixelTable {
   std::vector<uint8_t> retro;
   std::vector<uint8_t> edge;
   std::vector<float> azimuth_deg;  // encoder angle of the column (protocol doc 7.1)
-  // The edge partner across a depth step (IdealReturn::partner_*, E6), found in the frame's grid.
+  // The edge partner across a depth step (IdealReturn::partner_*, E6), as the forward model casts it (CastStage).
   std::vector<float> partner_range_m;
   std::vector<float> partner_reflectance;
   std::vector<float> partner_spacing_rad;

@@ -34,6 +34,7 @@ class ColumnCaster {
   void cast(std::span<const Column> columns) const;
   void cast(int measurement_id, const Pose& world_from_sensor, std::span<IdealReturn> out) const;
   static constexpr size_t kGroupColumns = RayStrip::kColumns;
+  float max_range_m() const { return max_range_m_; }
 
   // What a hit needs from its material, by geomID: copied from the scene once, so a hit reads a
   // flat array instead of calling across modules for every pixel.
@@ -52,6 +53,10 @@ class ColumnCaster {
 
   void cast_group(std::span<const Column> group) const;  // at most kGroupColumns
 };
+
+// Whether two neighbouring beams' ideal ranges (0: no hit) lie on different surfaces: one hits and
+// the other does not, or both hit farther apart than max(0.3 m, 5 % of the farther range).
+bool depth_step(float a, float b);
 
 // Sets IdealReturn::edge from the vertical neighbours in a column: 1 where a neighbour's range
 // differs by a depth step (> max(0.3 m, 5 % of the farther range)) or only one of the two hit.

@@ -10,17 +10,31 @@
 #include <span>
 #include <vector>
 
-#include "lidartwin/frame/frame_renderer.h"
+#include "lidartwin/caster/beam_geometry.h"
+#include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/frame/cast_stage.h"
 #include "lidartwin/frame/imu_model.h"
 #include "lidartwin/frame/sensor_clock.h"
 #include "lidartwin/frame/worker_pool.h"
+#include "lidartwin/packet/data_format.h"
 #include "lidartwin/packet/imu_packet.h"
 #include "lidartwin/packet/lidar_packet.h"
 #include "lidartwin/packet/scan.h"
 #include "lidartwin/pose/pose_source.h"
+#include "lidartwin/profile/beam_intrinsics.h"
 #include "lidartwin/scene/scene.h"
 
 namespace lidartwin {
+
+// What rendering needs to know of a sensor, as configured.
+struct RenderSetup {
+  BeamIntrinsics beams;  // as served to clients (lidar_frame_azimuth_offset rotates them)
+  LidarDataFormat format;
+  double max_range_m = 100.0;  // the profile's range limit: the cast looks 1 m beyond it
+  EffectChain chain;
+  uint64_t seed = 0;
+  float signal_gain = 1.0f;  // signal_multiplier
+};
 
 struct ForwardModelSetup {
   RenderSetup render;
@@ -55,7 +69,8 @@ class ForwardModel {
 
   const LidarDataFormat& format() const;
   const SensorClock& clock() const;
-  const FrameRenderer& renderer() const;
+  const BeamGeometry& geometry() const;
+  float cast_range_m() const;  // Embree's tfar: where the cast stops looking for a surface
   // First measurement ids of the packets each frame sends (packets_to_send), in send order.
   const std::vector<int>& packet_columns() const;
   size_t packet_size() const;
