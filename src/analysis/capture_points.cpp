@@ -25,9 +25,7 @@ double angle_difference(double a, double b) {
 }  // namespace
 
 bool column_valid(const Scan& scan, int m, const LidarDataFormat& format) {
-  if (scan.packet_received[static_cast<size_t>(m / format.columns_per_packet)] == 0) return false;
-  const uint32_t status = scan.status[static_cast<size_t>(m)];
-  return format.udp_profile_lidar == UdpProfileLidar::kLegacy ? status == 0xFFFF'FFFFu : (status & 1u) != 0;
+  return scan.packet_received[static_cast<size_t>(m / format.columns_per_packet)] != 0 && scan.column_valid(m);
 }
 
 float signal_gain_of(const Metadata& metadata) {

@@ -4,15 +4,6 @@
 #include <limits>
 
 namespace lidartwin::cli {
-namespace {
-
-bool valid_column(const Scan& scan, size_t m, UdpProfileLidar profile) {
-  const uint32_t status = scan.status[m];
-  return profile == UdpProfileLidar::kLegacy ? status == 0xFFFF'FFFFu : (status & 1u) != 0;
-}
-
-}  // namespace
-
 OsfSummary summarize_osf(const std::filesystem::path& osf, const std::filesystem::path& metadata_path) {
   OsfSummary s;
   s.file = OsfReader(osf).info();
@@ -26,7 +17,7 @@ OsfSummary summarize_osf(const std::filesystem::path& osf, const std::filesystem
     s.last_frame_id = frame.frame_id;
     size_t valid = 0;
     for (size_t m = 0; m < scan.status.size(); ++m) {
-      if (!valid_column(scan, m, s.metadata.format.udp_profile_lidar)) continue;
+      if (!scan.column_valid(static_cast<int>(m))) continue;
       ++valid;
       const uint64_t t = scan.timestamp_ns[m];
       if (s.first_column_ns == 0 || t < s.first_column_ns) s.first_column_ns = t;

@@ -51,7 +51,7 @@ void tally_frame(const BatchedFrame& batched, FrameTally& frame) {
   const Scan& scan = batched.scan;
   if (frame.valid_columns.empty()) frame.valid_columns.assign(static_cast<size_t>(scan.width), false);
   for (int m = 0; m < scan.width; ++m) {
-    if ((scan.status[static_cast<size_t>(m)] & 1u) == 0) continue;
+    if (!scan.column_valid(m)) continue;
     frame.valid_columns[static_cast<size_t>(m)] = true;
     const auto range = scan.column(ChannelField::kRange, m);
     frame.pixels += range.size();

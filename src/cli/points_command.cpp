@@ -34,7 +34,7 @@ int run_points(const PointsFlags& flags) {
     double first_time_s = -1.0;
     for (int m = 0; m < scan.width; ++m) {
       const auto column = static_cast<size_t>(m);
-      if (!(scan.status[column] & 1u)) continue;
+      if (!scan.column_valid(m)) continue;
       const double time_s = static_cast<double>(scan.timestamp_ns[column]) * 1e-9;
       if (first_time_s < 0) first_time_s = time_s;
       for (int r = 0; r < scan.height; ++r) {

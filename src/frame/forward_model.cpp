@@ -41,7 +41,7 @@ struct ForwardModel::Impl {
         per_column_poses(model_setup.per_column_poses) {
     assert(render.beams.pixels_per_column() == render.format.pixels_per_column);
     const LidarDataFormat& f = packets.format();
-    valid_status = f.udp_profile_lidar == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;  // 4.2, 4.4
+    valid_status = valid_column_status(f.udp_profile_lidar);
     index_of_first.assign(static_cast<size_t>(f.columns_per_frame / f.columns_per_packet), -1);
     for (size_t i = 0; i < firsts.size(); ++i) {
       index_of_first[static_cast<size_t>(firsts[i] / f.columns_per_packet)] = static_cast<int>(i);

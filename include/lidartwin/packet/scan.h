@@ -40,6 +40,9 @@ struct Scan {
   std::array<std::vector<uint32_t>, kChannelFieldCount> channels;
 
   bool has(ChannelField f) const { return !channels[static_cast<int>(f)].empty(); }
+  // Whether column c was measured: bit 0 of its status, which is how the SDK reads it in every
+  // profile (4.2, 4.4). (Whether its packet arrived at all is packet_received's.)
+  bool column_valid(int c) const { return (status[static_cast<size_t>(c)] & 1u) != 0; }
   std::span<uint32_t> column(ChannelField f, int c) {
     return {channels[static_cast<int>(f)].data() + static_cast<size_t>(c) * static_cast<size_t>(height),
             static_cast<size_t>(height)};
@@ -55,5 +58,10 @@ struct Scan {
     return channels[static_cast<int>(f)][static_cast<size_t>(c * height + r)];
   }
 };
+
+// The status a measured column carries (4.2, 4.4): LEGACY all ones, the other profiles bit 0.
+constexpr uint32_t valid_column_status(UdpProfileLidar profile) {
+  return profile == UdpProfileLidar::kLegacy ? 0xFFFF'FFFFu : 1u;
+}
 
 }  // namespace lidartwin
