@@ -66,7 +66,21 @@ struct Acc {
   double nll = 0, nll_expected = 0;
 };
 
-void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
+// What a return adds to every bin it falls in that costs a model to work out (the outlier share the
+// model expects, an inlier's E[z^2]): worked out once per pixel, not once per binning (16 of them).
+struct ReturnTerms {
+  std::vector<double> outliers_expected;
+  std::vector<double> z2;
+  ReturnTerms(const PixelTable& t, const PixelScores& s) : outliers_expected(t.size(), 0.0), z2(t.size(), 1.0) {
+    for (size_t i = 0; i < t.size(); ++i) {
+      if (t.ideal_range_m[i] <= 0.0f || t.range_m[i] <= 0.0f) continue;
+      outliers_expected[i] = expected_outlier_share(t, i);
+      if (!s.impossible[i] && std::abs(f64(s.z[i])) <= kOutlierZ) z2[i] = inlier_z2(t, i);
+    }
+  }
+};
+
+void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, const ReturnTerms& terms, size_t i) {
   const double pd = f64(t.p_detect[i]);
   ++a.pixels;
   a.pd += pd;
@@ -75,7 +89,7 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   a.nll_expected += f64(s.nll_expected[i]);
   if (t.range_m[i] <= 0.0f) return;
   ++a.returns;
-  a.outliers_expected += expected_outlier_share(t, i);
+  a.outliers_expected += terms.outliers_expected[i];
   const double z = f64(s.z[i]);
   if (s.impossible[i] || std::abs(z) > kOutlierZ) {
     ++a.outliers;
@@ -97,7 +111,7 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, size_t i) {
   const double reference2 = f64(t.reference_variance_m2[i]);
   const double reference_share = std::min(reference2 / (sigma * sigma), 1.0);
   // E[z^2] of an inlier is 1 under the model, more where E2's tails put some returns inside too.
-  const double z2 = inlier_z2(t, i);
+  const double z2 = terms.z2[i];
   a.wz2 += w * (z * z - reference_share);
   a.model_dof += w * (z2 - reference_share);
   a.reference2 += reference2;
@@ -364,18 +378,33 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, con
 
   // Every binning: accumulate over pixels that meet a surface, then summarize and test.
   const Features features = make_features(t);
+  const ReturnTerms terms(t, s);
+  // Each feature's bin of each pixel that meets a surface (-1: none), found once: range alone is in
+  // six binnings.
+  std::map<const Feature*, std::vector<int16_t>> bins_of;
+  const auto bins = [&](const Feature* f) -> const std::vector<int16_t>& {
+    std::vector<int16_t>& b = bins_of[f];
+    if (b.empty()) {
+      b.assign(t.size(), -1);
+      for (size_t i = 0; i < t.size(); ++i) {
+        if (t.ideal_range_m[i] > 0.0f) b[i] = static_cast<int16_t>(f->bin(f->value(i)));
+      }
+    }
+    return b;
+  };
   std::vector<RawTests> raw;
   for (const auto& names : binnings(features, t.reference)) {
     std::vector<const Feature*> fs;
     for (const auto& name : names) fs.push_back(&features[name]);
     const int n2 = fs.size() > 1 ? fs[1]->bins() : 1;
     std::vector<Acc> acc(static_cast<size_t>(fs[0]->bins() * n2));
+    const std::vector<int16_t>& first = bins(fs[0]);
+    const std::vector<int16_t>* second = fs.size() > 1 ? &bins(fs[1]) : nullptr;
     for (size_t i = 0; i < t.size(); ++i) {
-      if (t.ideal_range_m[i] <= 0.0f) continue;
-      const int k0 = fs[0]->bin(fs[0]->value(i));
-      const int k1 = fs.size() > 1 ? fs[1]->bin(fs[1]->value(i)) : 0;
+      const int k0 = first[i];
+      const int k1 = second ? (*second)[i] : 0;
       if (k0 < 0 || k1 < 0) continue;
-      add_pixel(acc[static_cast<size_t>(k0 * n2 + k1)], t, s, i);
+      add_pixel(acc[static_cast<size_t>(k0 * n2 + k1)], t, s, terms, i);
     }
     for (size_t k = 0; k < acc.size(); ++k) {
       if (acc[k].pixels == 0) continue;
