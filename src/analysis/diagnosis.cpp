@@ -50,6 +50,12 @@ struct Search {
     return scratch;
   }
   mutable PixelTable scratch;
+  // Its scores, likewise one set of arrays for every rescoring.
+  const PixelScores& scored(const PixelTable& predicted) const {
+    score_pixels(predicted, 0, rows.pool, scores);
+    return scores;
+  }
+  mutable PixelScores scores;
 };
 
 constexpr std::string_view kTails = "signal_outliers";  // E2's tails (tails_apply)
@@ -195,7 +201,7 @@ std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candid
   PatternAdjustment adjust;
   {
     const PixelTable& now = s.predicted_by(s.chain);
-    const PixelScores now_scores = score_pixels(now, 0, s.rows.pool);
+    const PixelScores& now_scores = s.scored(now);
     pattern = strongest_pattern(now, now_scores);
     if (!pattern.quantity.empty()) adjust = pattern_adjustment(now, now_scores, pattern);
   }
@@ -207,7 +213,7 @@ std::optional<NotSelected> passed_over_for_pattern(const Search& s, const Candid
   if (given.delta_bic >= s.options.min_delta_bic) return std::nullopt;
   const EffectChain with = with_candidate(s.chain, best.effect_json);
   const PixelTable& then = s.predicted_by(with);
-  const PatternAdjustment after = pattern_adjustment(then, score_pixels(then, 0, s.rows.pool), pattern);
+  const PatternAdjustment after = pattern_adjustment(then, s.scored(then), pattern);
   const double pattern_given =  // the pattern's delta BIC given the candidate
       2.0 * (s.nll - best.delta_nll - analysis_detail::total_nll(s.table, s.rows, with, &after)) -
       pattern.dof * s.log_n();
@@ -326,7 +332,7 @@ void explain_remaining(const Search& s, Diagnosis& d) {
   MisfitOptions misfit_options;
   misfit_options.alpha = s.options.alpha;
   const PixelTable& final_table = s.predicted_by(s.chain);
-  const PixelScores final_scores = score_pixels(final_table, 0, s.rows.pool);
+  const PixelScores& final_scores = s.scored(final_table);
   const Misfit remaining = find_misfit(final_table, final_scores, s.misfit.summary.frames, misfit_options);
   d.unexplained = explain_misfit(final_table, final_scores, remaining, s.options.alpha);
   d.remaining_failing = remaining.failing.size();
@@ -351,7 +357,7 @@ std::vector<std::string> repairs(const Search& s, const EffectChain& chain) {
   const PixelTable& with = s.predicted_by(chain);
   MisfitOptions misfit_options;
   misfit_options.alpha = s.options.alpha;
-  const Misfit after = find_misfit(with, score_pixels(with, 0, s.rows.pool), s.misfit.summary.frames, misfit_options);
+  const Misfit after = find_misfit(with, s.scored(with), s.misfit.summary.frames, misfit_options);
   std::set<std::pair<std::string, std::string>> still;
   for (const FailingRegion& f : after.failing) still.insert({f.quantity, describe(f.region)});
   std::vector<std::string> out;
@@ -404,8 +410,8 @@ std::string replacement_sentence(const Replacement& r) {
 Diagnosis diagnose(const PixelTable& table, const EffectChain& chain, const Misfit& misfit,
                    const DiagnoseOptions& options) {
   Diagnosis d;
-  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool),
-           chain, 0.0,    0,       {}};
+  Search s{table, misfit, options, analysis_detail::subsample(table, options.max_pixels, options.pool), chain, 0.0,
+           0,     {},     {}};
   d.pixels = s.rows.size();
   refit_radiometry_first(s, d);
   s.nll = analysis_detail::total_nll(table, s.rows, s.chain);

@@ -297,6 +297,11 @@ std::string describe(const Region& region) {
 
 PixelScores score_pixels(const PixelTable& t, uint64_t seed, WorkerPool* pool) {
   PixelScores s;
+  score_pixels(t, seed, pool, s);
+  return s;
+}
+
+void score_pixels(const PixelTable& t, uint64_t seed, WorkerPool* pool, PixelScores& s) {
   const size_t n = t.size();
   s.nll.resize(n);
   s.z.resize(n);
@@ -323,7 +328,6 @@ PixelScores score_pixels(const PixelTable& t, uint64_t seed, WorkerPool* pool) {
       s.nll_variance[i] = static_cast<float>(moments.variance);
     }
   });
-  return s;
 }
 
 Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, const MisfitOptions& options) {

@@ -27,6 +27,8 @@ struct PixelScores {
   std::vector<float> nll_variance;
 };
 PixelScores score_pixels(const PixelTable& table, uint64_t seed = 0, WorkerPool* pool = nullptr);
+// The same into `out`, whose arrays are reused (no allocation when it scored a table of this size).
+void score_pixels(const PixelTable& table, uint64_t seed, WorkerPool* pool, PixelScores& out);
 
 // A region of feature space: feature name (compare vocabulary: range, incidence, reflectivity,
 // signal, near_ir, beam, azimuth, time, edge, material, retro) -> [lo, hi].
