@@ -249,6 +249,17 @@ bool tails_apply(const Search& s) {
   });
 }
 
+// Whether a candidate can change the likelihood against the table's reference. A pixel's own
+// temporal mean (static mode) carries every bias that does not change between frames, per-beam
+// offsets (E10) and a range walk (E3) among them, and there is no scene to say where edge partners
+// (E6), retroreflectors (E8) or the surface's tilt (E4) are: fitted there they could only come out
+// at nothing, and were listed with negative evidence.
+bool visible_against_reference(std::string_view effect, PixelTable::Reference reference) {
+  if (reference != PixelTable::Reference::kTemporalMean) return true;
+  return effect != "beam_calibration" && effect != "range_walk" && effect != "mixed_pixels" && effect != "halo" &&
+         effect != "incidence";
+}
+
 // The rounds: every candidate of the pool fitted given the chain, and (until one is kept, where the
 // profile misfits) the noise law's other forms in its place. The best is kept while it is very
 // strong evidence (delta BIC > min_delta_bic) and, for an added candidate, significant; a
@@ -259,7 +270,9 @@ std::vector<Step> search_steps(Search& s, Diagnosis& d) {
   for (const CandidateSpec& spec : candidate_specs()) {
     const bool present = std::any_of(s.chain.effects().begin(), s.chain.effects().end(),
                                      [&](const auto& e) { return e->name() == spec.effect; });
-    if (!present && (spec.effect != kTails || tails)) pool.push_back(&spec);
+    if (!present && (spec.effect != kTails || tails) && visible_against_reference(spec.effect, s.table.reference)) {
+      pool.push_back(&spec);
+    }
   }
   const double corrected_alpha = s.options.alpha / static_cast<double>(std::max<size_t>(pool.size(), 1));
   bool may_replace = s.options.refit_profile && !s.misfit.failing.empty();
