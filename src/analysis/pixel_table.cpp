@@ -3,12 +3,10 @@
 #include "lidartwin/analysis/pixel_table.h"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <cassert>
 #include <cmath>
 #include <functional>
-#include <limits>
 #include <mutex>
 #include <numbers>
 
