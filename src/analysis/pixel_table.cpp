@@ -14,7 +14,6 @@
 
 #include "analysis/capture_points.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
-#include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/column_caster.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/cast_stage.h"
@@ -463,7 +462,6 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   const Metadata& metadata = setup.capture.metadata;
   const LidarDataFormat& format = metadata.format;
   const PacketFormat packets(format);
-  const BeamGeometry geometry(metadata.beams, format.columns_per_frame);
 
   const std::vector<ObservedColumn> observed = observed_columns(setup);
   PixelTable table;
@@ -471,8 +469,8 @@ PixelTable build_pixel_table(const PixelTableSetup& setup, WorkerPool& pool) {
   table.context = wire_context(packets, analysis_detail::signal_gain_of(metadata));
   const uint64_t first_stamp = first_column_stamp(setup.capture, observed);
   table.start_s = observed.empty() ? 0.0 : static_cast<double>(first_stamp) * 1e-9;
-  const CastStage cast(setup.scene, geometry, cast_reach_m(setup.max_range_m, packets), setup.chain, table.context,
-                       CastStage::Use::kPredict);
+  const CastStage cast(setup.scene, metadata.beams, format.columns_per_frame, cast_reach_m(setup.max_range_m, packets),
+                       setup.chain, table.context, CastStage::Use::kPredict);
   if (cast_and_predict(setup, observed, cast, first_stamp, table, pool)) {
     throw InputError(
         "--profile: its effect chain predicts no range spread (variance 0) for pixels it detects, so no measured "

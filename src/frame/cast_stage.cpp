@@ -8,11 +8,11 @@ namespace lidartwin {
 CastStage::Block::Block(size_t columns, size_t rows)
     : ideal_(columns, std::vector<IdealReturn>(rows)), before_(rows), after_(rows), moved_(columns) {}
 
-CastStage::CastStage(const Scene& scene, const BeamGeometry& geometry, float reach_m, const EffectChain& chain,
-                     const ColumnContext& wire, Use use)
-    : geometry_(geometry),
+CastStage::CastStage(const Scene& scene, const BeamIntrinsics& beams, int width, float reach_m,
+                     const EffectChain& chain, const ColumnContext& wire, Use use)
+    : geometry_(beams, width),
       chain_(chain),
-      caster_(scene, geometry, reach_m),
+      caster_(scene, geometry_, reach_m),
       wire_(wire),
       moves_(use == Use::kSimulate && chain.moves_sensor()),
       partners_(use == Use::kPredict || chain.needs_edge_partners()) {}

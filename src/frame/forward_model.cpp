@@ -32,9 +32,8 @@ struct ForwardModel::Impl {
         packets(model_setup.render.format),  // validates the format first
         sensor_from_imu(lidartwin::sensor_from_imu(model_setup.render.beams.imu_to_sensor)),
         render(std::move(model_setup.render)),
-        geometry(render.beams, render.format.columns_per_frame),
-        cast(scene, geometry, cast_reach_m(render.max_range_m, packets), render.chain, column_context(),
-             CastStage::Use::kSimulate),
+        cast(scene, render.beams, render.format.columns_per_frame, cast_reach_m(render.max_range_m, packets),
+             render.chain, column_context(), CastStage::Use::kSimulate),
         encoder(packets),
         pool(worker_pool),
         firsts(packets_to_send(packets.format())),
@@ -154,7 +153,6 @@ struct ForwardModel::Impl {
   PacketFormat packets;
   Pose sensor_from_imu;
   RenderSetup render;
-  BeamGeometry geometry;
   CastStage cast;
   frame_detail::ChannelEncoder encoder;
   WorkerPool& pool;
@@ -178,7 +176,7 @@ ForwardModel::~ForwardModel() = default;
 
 const LidarDataFormat& ForwardModel::format() const { return impl_->format(); }
 const SensorClock& ForwardModel::clock() const { return impl_->clock; }
-const BeamGeometry& ForwardModel::geometry() const { return impl_->geometry; }
+const BeamGeometry& ForwardModel::geometry() const { return impl_->cast.geometry(); }
 float ForwardModel::cast_range_m() const { return impl_->cast.reach_m(); }
 const std::vector<int>& ForwardModel::packet_columns() const { return impl_->firsts; }
 size_t ForwardModel::packet_size() const { return impl_->packets.lidar_packet_size(); }

@@ -13,6 +13,7 @@
 #include "lidartwin/caster/column_caster.h"
 #include "lidartwin/effects/effect_chain.h"
 #include "lidartwin/pose/pose.h"
+#include "lidartwin/profile/beam_intrinsics.h"
 #include "lidartwin/scene/scene.h"
 
 namespace lidartwin {
@@ -35,10 +36,13 @@ class CastStage {
   // diagnosis can test mixed pixels on a chain without them.
   enum class Use : uint8_t { kSimulate, kPredict };
 
-  // scene, geometry and chain must outlive the stage; `wire` is the context every column shares
-  // (wire_context), `reach_m` how far rays look (cast_reach_m).
-  CastStage(const Scene& scene, const BeamGeometry& geometry, float reach_m, const EffectChain& chain,
+  // The beams as a unit's intrinsics say, `width` columns a turn. scene and chain must outlive the
+  // stage; `wire` is the context every column shares (wire_context), `reach_m` how far rays look
+  // (cast_reach_m).
+  CastStage(const Scene& scene, const BeamIntrinsics& beams, int width, float reach_m, const EffectChain& chain,
             const ColumnContext& wire, Use use);
+  CastStage(const CastStage&) = delete;  // its caster refers to its geometry
+  CastStage& operator=(const CastStage&) = delete;
 
   // One worker's buffers for blocks of up to `columns` columns, reused block after block.
   class Block {
@@ -73,7 +77,7 @@ class CastStage {
  private:
   void find_partners(const FrameColumns& columns, int begin, int end, Block& block) const;
 
-  const BeamGeometry& geometry_;
+  BeamGeometry geometry_;
   const EffectChain& chain_;
   ColumnCaster caster_;
   ColumnContext wire_;
