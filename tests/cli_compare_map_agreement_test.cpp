@@ -45,6 +45,10 @@ using lidartwin::test::run_cli;
 // (a ratio from n returns has a relative standard error of 1/sqrt(2n) only for Gaussian residuals;
 // the hidden effects make them heavier-tailed, and a bin's mix varies with its few surfaces).
 constexpr size_t kMinInliers = 10000;
+// The spreads of the same returns are compared from half that: the two modes' ratios share the
+// returns' own noise, so their quotient varies far less than either (the yard's 13-20 m and 20-35 m
+// bins, about 6,000 returns each, the ground at 80-85 degrees).
+constexpr size_t kMinSameInliers = 5000;
 
 nlohmann::json read_json(const fs::path& path) {
   std::ifstream in(path);
@@ -184,19 +188,17 @@ bool spread_fails(const nlohmann::json& report, const std::string& feature, doub
 }
 
 // Per range and reflectivity bin, on the returns both judged, map mode's spread ratio (the
-// reference's own variance taken out) is the scene's within 5 %. The exception is the ground
-// beyond 13 m, seen at 80-85 degrees of incidence, where the reference's variance is most of the
-// residual's (s^2 h / cos^2 with cos^2 near 0.01) and is under-counted: there, within 12 %
-// (docs/compare-report.md, "References without a scene").
-// Map mode's spread ratio over the scene's, per bin of `feature` holding kMinInliers or more;
+// reference's own variance taken out) is the scene's within 5 %, the ground at 80-85 degrees
+// beyond 13 m included (docs/compare-report.md, "References without a scene").
+// Map mode's spread ratio over the scene's, per bin of `feature` holding min_inliers or more;
 // returns how many were compared.
-size_t expect_agreement(const std::string& name, const nlohmann::json& same, const std::string& feature) {
+size_t expect_agreement(const std::string& name, const nlohmann::json& same, const std::string& feature,
+                        size_t min_inliers = kMinSameInliers) {
   size_t compared = 0;
   for (const auto& bin : same[feature]) {
-    if (bin["inliers"].get<size_t>() < kMinInliers) continue;
+    if (bin["inliers"].get<size_t>() < min_inliers) continue;
     const double ratio = bin["map"].get<double>() / bin["scene"].get<double>();
-    const bool grazing_ground = feature == "range" && bin["bin"][0].get<double>() == 13.0;
-    EXPECT_NEAR(ratio, 1.0, grazing_ground ? 0.12 : 0.05) << name << " " << feature << " " << bin.dump();
+    EXPECT_NEAR(ratio, 1.0, 0.05) << name << " " << feature << " " << bin.dump();
     ++compared;
   }
   return compared;
@@ -209,14 +211,15 @@ void spread_per_range_and_reflectivity_bin_agrees(const std::map<std::string, Ju
   }
 }
 
-// With the frames registered to each other the same holds per range bin. Per reflectivity bin it
-// does not yet: where the profile is right (the plant's 40-60 %, walls at near-normal incidence)
-// the registration's error (a few millimetres, not in the reference's variance) shows, 1.07 times
-// the scene's (docs/compare-report.md).
+// With the frames registered to each other the same holds per range bin of kMinInliers. Per
+// reflectivity bin it does not yet: where the profile is right (the plant's 40-60 %, walls at
+// near-normal incidence) the registration's error (a few millimetres, not in the reference's
+// variance) shows, 1.10 times the scene's, and so it does at 1-2 m (1.14, 7,600 returns;
+// docs/compare-report.md).
 void with_registered_frames_the_spread_per_range_bin_agrees(const std::map<std::string, Judged>& judged) {
   for (const auto& [name, j] : judged) {
     if (j.registered.is_null()) continue;  // the independent capture is judged with its trajectory only
-    EXPECT_GE(expect_agreement(name + " (registered)", j.registered, "range"), 2u)
+    EXPECT_GE(expect_agreement(name + " (registered)", j.registered, "range", kMinInliers), 2u)
         << name << ": " << j.registered.dump();
   }
 }
@@ -261,16 +264,13 @@ Named named(const nlohmann::json& diagnosis) {
   return n;
 }
 
-// Without the scene the diagnosis ranks the hidden effect first, as it does with the scene. It
-// also keeps it on the plant and the independent capture, but on the yard it keeps incidence in
-// E2's stead (known, docs/compare-report.md): not asserted.
+// Without the scene the diagnosis ranks the hidden effect first, as it does with the scene, and
+// keeps it (on the yard, E2 in place of the datasheet's sigma(r)).
 void the_hidden_effect_is_named_as_with_the_scene(const std::map<std::string, Judged>& judged) {
   for (const auto& [name, j] : judged) {
     const Named map = named(j.map["diagnosis"]);
     EXPECT_EQ(map.first, j.hidden) << name << " (map): " << j.map["diagnosis"]["ranked"].dump();
-    if (name != "yard") {
-      EXPECT_TRUE(map.kept.count(j.hidden)) << name << " (map): " << j.map["diagnosis"]["selected"].dump();
-    }
+    EXPECT_TRUE(map.kept.count(j.hidden)) << name << " (map): " << j.map["diagnosis"].dump();
   }
 }
 

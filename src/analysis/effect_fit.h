@@ -2,6 +2,7 @@
 // What the diagnosis, `fit` and the noise-law replacements share: an effect's free parameters fitted
 // by maximum likelihood on the pixel table (lidar-physics.md 3.5), wherever the effect sits in the
 // chain (a candidate added, a profile's own effect refitted in place, or put in another's place).
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@ struct FreeParameter {
   double start;
   double step;
   std::vector<std::string> tied = {};
+  double most = std::numeric_limits<double>::infinity();  // below the effect's own upper bound, where the search needs
 };
 struct CandidateSpec {
   std::string effect;

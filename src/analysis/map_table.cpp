@@ -39,6 +39,17 @@ struct Crossing {
   float variance_m2 = 0.0f;  // of the reference range along the beam
 };
 
+// The points a reference surface is fitted to, each with its beam's direction (world frame, unit):
+// a point errs along its own beam.
+struct Patch {
+  std::vector<Eigen::Vector3d> points, beams;
+  void clear() {
+    points.clear();
+    beams.clear();
+  }
+  size_t size() const { return points.size(); }
+};
+
 // A pixel beside a depth step in its own frame (0.15 m or 3 %, finer than the scene table's 0.3 m
 // or 5 %: a reference patch straddling a smaller step still mixes two surfaces):
 // along its row, a neighbour's range differs by a step; along its column, the range bends by one
@@ -67,8 +78,8 @@ struct Surface {
   Eigen::Vector3d centre, e_u, e_v, e_w;
   int terms = 3;
   Eigen::Matrix<double, 6, 1> c = Eigen::Matrix<double, 6, 1>::Zero();
-  Eigen::Matrix<double, 6, 6> inverse = Eigen::Matrix<double, 6, 6>::Zero();  // (Phi^T Phi)^-1
-  double residual_variance = 0.0;
+  double residual_variance = 0.0;                                                // in height
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  // of c (fit_along_beams)
   static Eigen::Matrix<double, 6, 1> basis(double u, double v) {
     Eigen::Matrix<double, 6, 1> b;
     b << 1.0, u, v, u * u, u * v, v * v;
@@ -85,11 +96,12 @@ struct Surface {
     if (terms == 6) s += Eigen::Vector2d(2.0 * c(3) * u + c(4) * v, c(4) * u + 2.0 * c(5) * v);
     return s;
   }
-  double leverage(double u, double v) const {
+  // The variance of the height at (u, v) that the coefficients' errors make.
+  double height_variance(double u, double v) const {
     const Eigen::Matrix<double, 6, 1> b = basis(u, v);
     double sum = 0.0;
     for (int i = 0; i < terms; ++i) {
-      for (int j = 0; j < terms; ++j) sum += b(i) * inverse(i, j) * b(j);
+      for (int j = 0; j < terms; ++j) sum += b(i) * covariance(i, j) * b(j);
     }
     return sum;
   }
@@ -103,7 +115,7 @@ class MapReferences {
         std::max(1, static_cast<int>(std::lround(projector.row_spacing_rad() / projector.column_spacing_rad())));
   }
 
-  Verdict reference(size_t k, int m, int r, Crossing& out, std::vector<Eigen::Vector3d>& points) const {
+  Verdict reference(size_t k, int m, int r, Crossing& out, Patch& points) const {
     const FramePoints& own = frames_[k];
     if (beside_step(own, projector_, m, r, column_reach_)) return Verdict::kEdge;
     const size_t i = own.index(m, r);
@@ -115,37 +127,35 @@ class MapReferences {
     const double base = std::max(kMinPatchM, 1.5 * range * spacing);
     Surface s;
     double half = base;
+    int rows = 1, columns = 1;
     for (int grow = 0;; ++grow) {
       half = base * static_cast<double>(1 << grow);
-      const int rows = std::clamp(static_cast<int>(std::ceil(half / (range * projector_.row_spacing_rad()))), 1, 24);
-      const int columns =
-          std::clamp(static_cast<int>(std::ceil(half / (range * projector_.column_spacing_rad()))), 1, 48);
-      const size_t frames_used = gather(k, x, half, rows, columns, points);
+      rows = std::clamp(static_cast<int>(std::ceil(half / (range * projector_.row_spacing_rad()))), 1, 24);
+      columns = std::clamp(static_cast<int>(std::ceil(half / (range * projector_.column_spacing_rad()))), 1, 48);
+      const size_t frames_used = gather(k, x, 1.5 * half, rows, columns, points);
       if (points.size() < kMinPoints || frames_used < 2) return Verdict::kUnsupported;
       const Fit fitted = fit(points, s);
       if (fitted == Fit::kSurface) break;
       if (fitted == Fit::kNotOneSurface || grow == 2) return Verdict::kNotSurface;
     }
-    // The beam, in the surface's frame, and where it meets the surface (Newton from the plane).
     const Eigen::Vector3d origin =
         (own.rotation[static_cast<size_t>(m)] * projector_.origin(m, r) + own.translation[static_cast<size_t>(m)])
             .cast<double>();
     const Eigen::Vector3d direction =
         (own.rotation[static_cast<size_t>(m)] * projector_.direction(m, r)).cast<double>();
-    const Eigen::Vector3d o(s.e_u.dot(origin - s.centre), s.e_v.dot(origin - s.centre), s.e_w.dot(origin - s.centre));
+    double t = range, u = 0.0, v = 0.0;
+    if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
+    // The patch again, around where the beam met that surface rather than around the pixel's own
+    // point, its points kept by where their beams meet the surface, and refitted along the beams
+    // (select_by_beams, fit_along_beams).
+    const Eigen::Vector3d first_crossing(u, v, s.height(u, v));
+    gather(k, (origin + t * direction).cast<float>(), 1.5 * half, rows, columns, points);
+    if (!select_by_beams(points, s, first_crossing, 1.5 * half)) return Verdict::kUnsupported;
+    if (!fit_along_beams(s)) return Verdict::kNotSurface;
+    if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
     const Eigen::Vector3d d(s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction));
-    if (std::abs(d.z()) < kMaxCosGrazing) return Verdict::kGrazing;
-    double t = range;
-    for (int step = 0; step < 4; ++step) {
-      const double u = o.x() + t * d.x(), v = o.y() + t * d.y();
-      const Eigen::Vector2d slope = s.slope(u, v);
-      const double gap = o.z() + t * d.z() - s.height(u, v);
-      const double derivative = d.z() - slope.x() * d.x() - slope.y() * d.y();
-      if (std::abs(derivative) < 1e-6) return Verdict::kGrazing;
-      t -= gap / derivative;
-    }
-    const double u = o.x() + t * d.x(), v = o.y() + t * d.y();
     const Eigen::Vector2d slope = s.slope(u, v);
+    const double along_beam = d.z() - slope.x() * d.x() - slope.y() * d.y();  // height per metre of range
     const Eigen::Vector3d normal = Eigen::Vector3d(-slope.x(), -slope.y(), 1.0).normalized();
     // The pixel's own frame must see the same surface: a thin thing seen edge-on (a railing, a
     // beam's flange) lies in front of the larger surface the other frames' points describe.
@@ -158,28 +168,100 @@ class MapReferences {
     if (!(t > 0.0) || std::abs(t - range) > std::max(1.0, 0.1 * range)) return Verdict::kOffSurface;
     out.range_m = static_cast<float>(t);
     out.cos_incidence = static_cast<float>(cos_incidence);
-    // The surface's error at the crossing, along its normal, becomes a range error divided by
-    // cos(incidence) along the beam.
-    out.variance_m2 = static_cast<float>(s.residual_variance * s.leverage(u, v) / (cos_incidence * cos_incidence));
+    // The surface's error at the crossing, in height, becomes a range error divided by the height
+    // the beam gains per metre.
+    out.variance_m2 = static_cast<float>(s.height_variance(u, v) / (along_beam * along_beam));
     return Verdict::kCompared;
   }
 
  private:
   enum class Fit { kSurface, kRough, kNotOneSurface };
 
-  // The least-squares coefficients of the first P basis terms and (Phi^T Phi)^-1, with fixed-size
-  // matrices (no allocation per pixel); false when the points do not determine them.
-  template <int P>
-  static bool solve_normal_equations(const Eigen::Matrix<double, 6, 6>& normal, const Eigen::Matrix<double, 6, 1>& rhs,
-                                     Surface& s) {
-    const Eigen::LDLT<Eigen::Matrix<double, P, P>> ldlt(normal.template topLeftCorner<P, P>());
-    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return false;
-    s.c.template head<P>() = ldlt.solve(rhs.template head<P>());
-    s.inverse.template topLeftCorner<P, P>() = ldlt.solve(Eigen::Matrix<double, P, P>::Identity());
+  // Where a beam (world frame) meets the surface: its range t (Newton from `t`, the measured range)
+  // and the crossing's (u, v) in the surface's frame; false where the beam runs along it.
+  static bool cross(const Surface& s, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, double& t,
+                    double& u, double& v) {
+    const Eigen::Vector3d o(s.e_u.dot(origin - s.centre), s.e_v.dot(origin - s.centre), s.e_w.dot(origin - s.centre));
+    const Eigen::Vector3d d(s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction));
+    if (std::abs(d.z()) < kMaxCosGrazing) return false;
+    for (int step = 0; step < 4; ++step) {
+      u = o.x() + t * d.x();
+      v = o.y() + t * d.y();
+      const Eigen::Vector2d slope = s.slope(u, v);
+      const double gap = o.z() + t * d.z() - s.height(u, v);
+      const double derivative = d.z() - slope.x() * d.x() - slope.y() * d.y();
+      if (std::abs(derivative) < 1e-6) return false;
+      t -= gap / derivative;
+    }
+    u = o.x() + t * d.x();
+    v = o.y() + t * d.y();
     return true;
   }
 
-  static Fit fit(const std::vector<Eigen::Vector3d>& points, Surface& s) {
+  // The patch's points and beams in the surface's frame (local_, beams_).
+  static void to_local(const Patch& patch, const Surface& s) {
+    local_.clear();
+    beams_.clear();
+    for (size_t j = 0; j < patch.size(); ++j) {
+      const Eigen::Vector3d q = patch.points[j] - s.centre;
+      const Eigen::Vector3d& b = patch.beams[j];
+      local_.emplace_back(s.e_u.dot(q), s.e_v.dot(q), s.e_w.dot(q));
+      beams_.emplace_back(s.e_u.dot(b), s.e_v.dot(b), s.e_w.dot(b));
+    }
+  }
+
+  // Which points a patch holds decides its shape where they sit at its rim: taken within a radius
+  // of the pixel's measured point, a point of another frame is in or out by its own noise (along
+  // its beam: across the ground at grazing incidence), and the patch is centred by the pixel's own
+  // noise. Both then pass into the reference: on the ground at 80-85 degrees (plant drive, E4
+  // hidden), the reference moved by a third of the pixel's own error (correlation +0.35 with a fit
+  // along the beams). So the points kept are those whose beams meet the first surface within
+  // `half` of where the pixel's beam meets it, gathered around that crossing: positions free of
+  // every point's noise (correlation +0.05). False when fewer than kMinPoints remain.
+  static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double half) {
+    to_local(patch, s);
+    size_t kept = 0;
+    for (size_t j = 0; j < local_.size(); ++j) {
+      const Eigen::Vector3d& q = local_[j];
+      const Eigen::Vector3d& d = beams_[j];
+      const Eigen::Vector2d g = s.slope(q.x(), q.y());
+      const double per_metre = d.z() - g.x() * d.x() - g.y() * d.y();
+      if (std::abs(per_metre) < kMaxCosGrazing) continue;
+      const Eigen::Vector3d on_surface = q - ((q.z() - s.height(q.x(), q.y())) / per_metre) * d;
+      if ((on_surface - crossing).squaredNorm() > half * half) continue;
+      local_[kept] = q;
+      beams_[kept] = d;
+      ++kept;
+    }
+    local_.resize(kept);
+    beams_.resize(kept);
+    if (kept < kMinPoints) return false;
+    if (kept < kQuadricPoints) s.terms = 3;
+    return true;
+  }
+
+  static inline thread_local std::vector<Eigen::Vector3d> local_, beams_;
+
+  // The least-squares solution of the first P basis terms' normal equations and, when asked, the
+  // inverse of their matrix, with fixed-size matrices (no allocation per pixel); false when the
+  // points do not determine them.
+  template <int P>
+  static bool solve_normal_equations(const Eigen::Matrix<double, 6, 6>& normal, const Eigen::Matrix<double, 6, 1>& rhs,
+                                     Eigen::Matrix<double, 6, 1>& solution,
+                                     Eigen::Matrix<double, 6, 6>* inverse = nullptr) {
+    const Eigen::LDLT<Eigen::Matrix<double, P, P>> ldlt(normal.template topLeftCorner<P, P>());
+    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12) return false;
+    solution.setZero();
+    solution.template head<P>() = ldlt.solve(rhs.template head<P>());
+    if (inverse) {
+      inverse->setZero();
+      inverse->template topLeftCorner<P, P>() = ldlt.solve(Eigen::Matrix<double, P, P>::Identity());
+    }
+    return true;
+  }
+
+  static Fit fit(const Patch& patch, Surface& s) {
+    const std::vector<Eigen::Vector3d>& points = patch.points;
     const auto n = static_cast<double>(points.size());
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& p : points) mean += p;
@@ -210,7 +292,7 @@ class MapReferences {
       normal += b * b.transpose();
       rhs += b * local.back().z();
     }
-    if (s.terms == 6 ? !solve_normal_equations<6>(normal, rhs, s) : !solve_normal_equations<3>(normal, rhs, s)) {
+    if (s.terms == 6 ? !solve_normal_equations<6>(normal, rhs, s.c) : !solve_normal_equations<3>(normal, rhs, s.c)) {
       return Fit::kNotOneSurface;
     }
     double rss = 0.0;
@@ -235,14 +317,81 @@ class MapReferences {
     const double half = 2.0 * std::sqrt(values(2));
     const double sag = (std::abs(s.c(3)) + 0.5 * std::abs(s.c(4)) + std::abs(s.c(5))) * half * half;
     if (far >= 2 || sag >= 0.2 * half) return Fit::kNotOneSurface;
-    return s.residual_variance < values(1) / 9.0 ? Fit::kSurface : Fit::kRough;
+    if (s.residual_variance >= values(1) / 9.0) return Fit::kRough;
+    return Fit::kSurface;
   }
 
-  // The points of frames k - n .. k + n but k within 1.5 half of x, from a window of rows x columns
+  // Least squares across the surface (in height) is not how lidar points err: a point's noise is
+  // along its own beam, which at grazing incidence moves it mostly along the surface, into the
+  // regressors u and v (the ground at 80 degrees: noise in u six times that in height). That tilts
+  // the fit and makes its coefficients' variance from the height residuals wrong (on the ground the
+  // reference's error was 1.2-2 times what it gave). So the surface is refitted to each point's
+  // range residual along its beam (gauss_newton). A plane stands only where curving it does not
+  // fit much better: a tank seen through a patch of a dozen points is no plane, and a plane
+  // through them lies behind its bulge by centimetres that no variance counts (a likelihood ratio
+  // above 6 ln n, about p = 0.001; quadrics need kQuadricPoints, and fitted to fewer points, in the
+  // few scan lines that cross the ground far off, they are not determined).
+  static bool fit_along_beams(Surface& s) {
+    double rss = 0.0;
+    if (s.terms == 6) return gauss_newton(s, 6, rss);
+    if (!gauss_newton(s, 3, rss)) return false;
+    Surface curved = s;
+    double curved_rss = 0.0;
+    if (!gauss_newton(curved, 6, curved_rss)) return true;
+    const auto n = static_cast<double>(local_.size());
+    return !(n * std::log(rss / curved_rss) > 6.0 * std::log(n));
+  }
+
+  // Gauss-Newton on the points' range residuals along their beams, from the surface's coefficients
+  // (its first p terms): the regressors are taken where each point's beam meets the surface, free
+  // of its noise. The coefficients' covariance is the sandwich of those residuals (HC1): points
+  // farther away, or weaker, with a wider spread count as they err. False when the points do not
+  // determine the p terms.
+  static bool gauss_newton(Surface& s, int p, double& rss) {
+    const size_t n = local_.size();
+    if (n <= static_cast<size_t>(p) + 2) return false;
+    s.terms = p;
+    thread_local std::vector<Eigen::Matrix<double, 6, 1>> gradients;
+    thread_local std::vector<double> residuals;
+    gradients.resize(n);
+    residuals.resize(n);
+    Eigen::Matrix<double, 6, 6> inverse;
+    for (int iteration = 0;; ++iteration) {
+      Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+      Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+      rss = 0.0;
+      for (size_t j = 0; j < n; ++j) {
+        const Eigen::Vector3d& q = local_[j];
+        const Eigen::Vector3d& d = beams_[j];
+        const Eigen::Vector2d g = s.slope(q.x(), q.y());
+        double per_metre = d.z() - g.x() * d.x() - g.y() * d.y();  // the beam's height gain per metre
+        if (std::abs(per_metre) < kMaxCosGrazing) per_metre = std::copysign(kMaxCosGrazing, per_metre);
+        residuals[j] = (q.z() - s.height(q.x(), q.y())) / per_metre;  // metres along the beam
+        rss += residuals[j] * residuals[j];
+        // d residual / d c: the basis where the point's beam meets the surface, over per_metre.
+        gradients[j] = Surface::basis(q.x() - residuals[j] * d.x(), q.y() - residuals[j] * d.y()) / per_metre;
+        normal += gradients[j] * gradients[j].transpose();
+        rhs += gradients[j] * residuals[j];
+      }
+      Eigen::Matrix<double, 6, 1> step;
+      if (p == 6 ? !solve_normal_equations<6>(normal, rhs, step, &inverse)
+                 : !solve_normal_equations<3>(normal, rhs, step, &inverse)) {
+        return false;
+      }
+      if (iteration == 3) break;  // three steps from the height fit: converged to well below its error
+      s.c += step;
+    }
+    Eigen::Matrix<double, 6, 6> meat = Eigen::Matrix<double, 6, 6>::Zero();
+    for (size_t j = 0; j < n; ++j) meat += (residuals[j] * residuals[j]) * (gradients[j] * gradients[j].transpose());
+    const double dof = static_cast<double>(n) / static_cast<double>(n - static_cast<size_t>(p));
+    s.covariance = dof * inverse * meat * inverse;
+    return s.covariance.allFinite() && s.c.allFinite();
+  }
+
+  // The points of frames k - n .. k + n but k within `radius` of x, from a window of rows x columns
   // around where x falls in each; returns how many frames gave some.
-  size_t gather(size_t k, const Eigen::Vector3f& x, double half, int rows, int columns,
-                std::vector<Eigen::Vector3d>& points) const {
-    const auto radius2 = static_cast<float>(2.25 * half * half);
+  size_t gather(size_t k, const Eigen::Vector3f& x, double radius, int rows, int columns, Patch& points) const {
+    const auto radius2 = static_cast<float>(radius * radius);
     points.clear();
     size_t frames_used = 0;
     const size_t first = k >= static_cast<size_t>(neighbour_frames_) ? k - static_cast<size_t>(neighbour_frames_) : 0;
@@ -258,7 +407,9 @@ class MapReferences {
           if (!near) continue;
           const size_t t = other.index(near->m, near->r);
           if (!other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
-          points.push_back(other.world[t].cast<double>());
+          points.points.push_back(other.world[t].cast<double>());
+          points.beams.push_back(
+              (other.rotation[static_cast<size_t>(near->m)] * projector_.direction(near->m, near->r)).cast<double>());
         }
       }
       frames_used += points.size() > before;
@@ -347,7 +498,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
     const auto k = static_cast<size_t>(item);
     const FramePoints& f = frames[k];
     MapExclusions& c = counts[k];
-    std::vector<Eigen::Vector3d> points;
+    Patch points;
     const int width = k >= scored_begin && k < scored_end ? f.width : 0;  // a reference only
     for (int m = 0; m < width; ++m) {
       for (int r = 0; r < f.height; ++r) {

@@ -5,7 +5,8 @@ reflectivity): the two reports bin different returns (map mode keeps returns on 
 the other frames saw), so where the missing effect depends on more than the binned feature their
 bins differ in what they hold, not in how they judge it. Each ratio is computed as compare's
 misfit does: inliers (|z| <= 5 in both), sqrt(sum z^2 / n) for the scene and, for map mode, with
-the reference's own variance taken out, sqrt(sum (z^2 - v / sd^2) / sum (1 - v / sd^2)).
+the reference's own variance taken out, s = v / sd^2: sqrt(sum w (z^2 - s) / (1 - s) / sum w), with
+weights w = min(1, 2 (1 - s)).
 
 usage: same_returns_spread.py SCENE_DIR MAP_DIR  ->  JSON on stdout
 """
@@ -28,6 +29,7 @@ def main():
     _, js, jm = np.intersect1d(key(scene), key(mapped), return_indices=True)
     zs, zm = scene["z"][js], mapped["z"][jm]
     share = np.minimum(mapped["reference_variance_m2"][jm] / mapped["predicted_sd_m"][jm] ** 2, 1.0)
+    weight = np.minimum(1.0 / np.maximum(1.0 - share, 1e-12), 2.0)  # w / (1 - s)
     inliers = (np.abs(zs) <= OUTLIER_Z) & (np.abs(zm) <= OUTLIER_Z) & (scene["range_m"][js] > 0)
     features = {"range": scene["ideal_range_m"][js], "reflectivity": 100.0 * scene["material_reflectivity"][js]}
     out = {"returns": int(len(js))}
@@ -39,7 +41,8 @@ def main():
                 continue
             rows.append({"bin": [lo, hi], "inliers": int(s.sum()),
                          "scene": float(np.sqrt(np.mean(zs[s] ** 2))),
-                         "map": float(np.sqrt(np.sum(zm[s] ** 2 - share[s]) / np.sum(1.0 - share[s])))})
+                         "map": float(np.sqrt(np.sum(weight[s] * (zm[s] ** 2 - share[s])) /
+                                              np.sum(weight[s] * (1.0 - share[s]))))})
         out[name] = rows
     json.dump(out, sys.stdout)
 
