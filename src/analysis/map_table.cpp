@@ -96,6 +96,12 @@ struct Surface {
     if (terms == 6) s += Eigen::Vector2d(2.0 * c(3) * u + c(4) * v, c(4) * u + 2.0 * c(5) * v);
     return s;
   }
+  // How much height a line of direction d (surface frame) gains per metre across the surface at
+  // (u, v): a beam's range error is a height error over this.
+  double rise(double u, double v, const Eigen::Vector3d& d) const {
+    const Eigen::Vector2d g = slope(u, v);
+    return d.z() - g.x() * d.x() - g.y() * d.y();
+  }
   // The variance of the height at (u, v) that the coefficients' errors make.
   double height_variance(double u, double v) const {
     const Eigen::Matrix<double, 6, 1> b = basis(u, v);
@@ -155,7 +161,7 @@ class MapReferences {
     if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
     const Eigen::Vector3d d(s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction));
     const Eigen::Vector2d slope = s.slope(u, v);
-    const double along_beam = d.z() - slope.x() * d.x() - slope.y() * d.y();  // height per metre of range
+    const double along_beam = s.rise(u, v, d);  // height per metre of range
     const Eigen::Vector3d normal = Eigen::Vector3d(-slope.x(), -slope.y(), 1.0).normalized();
     // The pixel's own frame must see the same surface: a thin thing seen edge-on (a railing, a
     // beam's flange) lies in front of the larger surface the other frames' points describe.
@@ -187,9 +193,8 @@ class MapReferences {
     for (int step = 0; step < 4; ++step) {
       u = o.x() + t * d.x();
       v = o.y() + t * d.y();
-      const Eigen::Vector2d slope = s.slope(u, v);
       const double gap = o.z() + t * d.z() - s.height(u, v);
-      const double derivative = d.z() - slope.x() * d.x() - slope.y() * d.y();
+      const double derivative = s.rise(u, v, d);
       if (std::abs(derivative) < 1e-6) return false;
       t -= gap / derivative;
     }
@@ -216,19 +221,18 @@ class MapReferences {
   // noise. Both then pass into the reference: on the ground at 80-85 degrees (plant drive, E4
   // hidden), the reference moved by a third of the pixel's own error (correlation +0.35 with a fit
   // along the beams). So the points kept are those whose beams meet the first surface within
-  // `half` of where the pixel's beam meets it, gathered around that crossing: positions free of
+  // `radius` of where the pixel's beam meets it, gathered around that crossing: positions free of
   // every point's noise (correlation +0.05). False when fewer than kMinPoints remain.
-  static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double half) {
+  static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double radius) {
     to_local(patch, s);
     size_t kept = 0;
     for (size_t j = 0; j < local_.size(); ++j) {
       const Eigen::Vector3d& q = local_[j];
       const Eigen::Vector3d& d = beams_[j];
-      const Eigen::Vector2d g = s.slope(q.x(), q.y());
-      const double per_metre = d.z() - g.x() * d.x() - g.y() * d.y();
+      const double per_metre = s.rise(q.x(), q.y(), d);
       if (std::abs(per_metre) < kMaxCosGrazing) continue;
       const Eigen::Vector3d on_surface = q - ((q.z() - s.height(q.x(), q.y())) / per_metre) * d;
-      if ((on_surface - crossing).squaredNorm() > half * half) continue;
+      if ((on_surface - crossing).squaredNorm() > radius * radius) continue;
       local_[kept] = q;
       beams_[kept] = d;
       ++kept;
@@ -363,8 +367,7 @@ class MapReferences {
       for (size_t j = 0; j < n; ++j) {
         const Eigen::Vector3d& q = local_[j];
         const Eigen::Vector3d& d = beams_[j];
-        const Eigen::Vector2d g = s.slope(q.x(), q.y());
-        double per_metre = d.z() - g.x() * d.x() - g.y() * d.y();  // the beam's height gain per metre
+        double per_metre = s.rise(q.x(), q.y(), d);
         if (std::abs(per_metre) < kMaxCosGrazing) per_metre = std::copysign(kMaxCosGrazing, per_metre);
         residuals[j] = (q.z() - s.height(q.x(), q.y())) / per_metre;  // metres along the beam
         rss += residuals[j] * residuals[j];
