@@ -29,6 +29,7 @@ constexpr size_t kQuadricPoints = 24;              // from this many points the 
 constexpr double kMinPatchM = 0.15;                // half-width of the patch at short range
 constexpr double kMaxCosGrazing = 0.0871557;       // cos 85 degrees
 constexpr double kMinNormalAgreement = 0.9063078;  // cos 25 degrees
+constexpr double kWidenBelowCos = 0.5;             // cos 60 degrees (MapReferences: the second gather)
 
 enum class Verdict { kCompared, kEdge, kUnsupported, kNotSurface, kOffSurface, kGrazing };
 
@@ -78,7 +79,8 @@ struct Surface {
   Eigen::Vector3d centre, e_u, e_v, e_w;
   int terms = 3;
   Eigen::Matrix<double, 6, 1> c = Eigen::Matrix<double, 6, 1>::Zero();
-  double residual_variance = 0.0;                                                // in height
+  double residual_variance = 0.0;  // in height
+  double robust_height = 0.0;      // the points' robust spread off the surface (fit), in height
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  // of c (fit_along_beams)
   static Eigen::Matrix<double, 6, 1> basis(double u, double v) {
     Eigen::Matrix<double, 6, 1> b;
@@ -153,13 +155,27 @@ class MapReferences {
     if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
     // The patch again, around where the beam met that surface rather than around the pixel's own
     // point, its points kept by where their beams meet the surface, and refitted along the beams
-    // (select_by_beams, fit_along_beams).
+    // (select_by_beams, fit_along_beams). At grazing incidence it is gathered wider than it is kept,
+    // by three of the points' spreads across the surface: a point errs along its beam, there
+    // mostly along the surface, and gathered by its measured position within the radius kept, a
+    // point at the rim would be in or out by its own noise (the far rim keeping the points that
+    // fell short, the near rim those that overshot: the surface tilted towards the sensor, by 1.7
+    // degrees on the ground at 8-13 m with the shipped os1-64 profile's 5-7 cm there, and E4's
+    // spread predicted from that incidence 12 % low). Below 60 degrees the noise runs mostly
+    // across the surface and the patch is gathered as it is kept.
     const Eigen::Vector3d first_crossing(u, v, s.height(u, v));
-    gather(k, (origin + t * direction).cast<float>(), 1.5 * half, rows, columns, points);
-    if (!select_by_beams(points, s, first_crossing, 1.5 * half)) return Verdict::kUnsupported;
+    const double kept_radius = 1.5 * half;
+    const double cos_first = std::clamp(std::abs(s.rise(u, v, local_direction(s, direction))), kMaxCosGrazing, 1.0);
+    const double along_surface =
+        cos_first < kWidenBelowCos ? s.robust_height * std::sqrt(1.0 - cos_first * cos_first) / cos_first : 0.0;
+    const double gather_radius = std::min(kept_radius + 3.0 * along_surface, 2.0 * kept_radius);
+    const double widen = gather_radius / kept_radius;
+    gather(k, (origin + t * direction).cast<float>(), gather_radius, static_cast<int>(std::ceil(widen * rows)),
+           static_cast<int>(std::ceil(widen * columns)), points);
+    if (!select_by_beams(points, s, first_crossing, kept_radius)) return Verdict::kUnsupported;
     if (!fit_along_beams(s)) return Verdict::kNotSurface;
     if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
-    const Eigen::Vector3d d(s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction));
+    const Eigen::Vector3d d = local_direction(s, direction);
     const Eigen::Vector2d slope = s.slope(u, v);
     const double along_beam = s.rise(u, v, d);  // height per metre of range
     const Eigen::Vector3d normal = Eigen::Vector3d(-slope.x(), -slope.y(), 1.0).normalized();
@@ -188,7 +204,7 @@ class MapReferences {
   static bool cross(const Surface& s, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, double& t,
                     double& u, double& v) {
     const Eigen::Vector3d o(s.e_u.dot(origin - s.centre), s.e_v.dot(origin - s.centre), s.e_w.dot(origin - s.centre));
-    const Eigen::Vector3d d(s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction));
+    const Eigen::Vector3d d = local_direction(s, direction);
     if (std::abs(d.z()) < kMaxCosGrazing) return false;
     for (int step = 0; step < 4; ++step) {
       u = o.x() + t * d.x();
@@ -201,6 +217,10 @@ class MapReferences {
     u = o.x() + t * d.x();
     v = o.y() + t * d.y();
     return true;
+  }
+
+  static Eigen::Vector3d local_direction(const Surface& s, const Eigen::Vector3d& direction) {
+    return {s.e_u.dot(direction), s.e_v.dot(direction), s.e_w.dot(direction)};
   }
 
   // The patch's points and beams in the surface's frame (local_, beams_).
@@ -222,7 +242,9 @@ class MapReferences {
   // hidden), the reference moved by a third of the pixel's own error (correlation +0.35 with a fit
   // along the beams). So the points kept are those whose beams meet the first surface within
   // `radius` of where the pixel's beam meets it, gathered around that crossing: positions free of
-  // every point's noise (correlation +0.05). False when fewer than kMinPoints remain.
+  // every point's noise (correlation +0.05), and within five robust deviations in height of it
+  // (the gather is wider than `radius`: a second surface's points whose beams pass the crossing,
+  // a box's face before the ground, stay out). False when fewer than kMinPoints remain.
   static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double radius) {
     to_local(patch, s);
     size_t kept = 0;
@@ -233,6 +255,7 @@ class MapReferences {
       if (std::abs(per_metre) < kMaxCosGrazing) continue;
       const Eigen::Vector3d on_surface = q - ((q.z() - s.height(q.x(), q.y())) / per_metre) * d;
       if ((on_surface - crossing).squaredNorm() > radius * radius) continue;
+      if (std::abs(q.z() - s.height(q.x(), q.y())) > 5.0 * s.robust_height) continue;  // another surface
       local_[kept] = q;
       beams_[kept] = d;
       ++kept;
@@ -314,6 +337,7 @@ class MapReferences {
     const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
     std::nth_element(sorted.begin(), mid, sorted.end());
     const double robust = 1.4826 * *mid;
+    s.robust_height = robust;
     const auto far = std::count_if(deviations.begin(), deviations.end(), [&](double d) { return d > 5.0 * robust; });
     // A fold (a corner, an edge's two faces) is fitted by a quadric too, badly: the surface may
     // bend over the patch by a fifth of its half-width at most (a radius of curvature of 2.5

@@ -63,6 +63,7 @@ struct Acc {
   double model_dof = 0;                    // what wz2 is under the model (ratio^2 = wz2 / model_dof)
   double dof_weight = 0, dof_weight2 = 0;  // the spread's degrees of freedom, (sum)^2 / sum2
   double reference2 = 0;                   // the reference's own variance (map mode), taken out of the spreads
+  double weighted_sigma2 = 0;              // sigma_model^2 weighted as the ratio weighs (map mode's spread_m)
   double outliers_expected = 0;
   double nll = 0, nll_expected = 0;
 };
@@ -123,6 +124,7 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, const ReturnTe
   a.dof_weight += weight * (1.0 - reference_share);
   if (w > 0.0) a.dof_weight2 += weight * weight / w;
   a.reference2 += reference2;
+  a.weighted_sigma2 += weight * (1.0 - reference_share) * z2 * (sigma * sigma - reference2);
   a.e += e;
   a.eb += e - bias;
   a.eb2 += (e - bias) * (e - bias);
@@ -192,6 +194,13 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     // Residuals about a temporal mean weigh by their share of the degrees of freedom (1 elsewhere).
     const double ratio2 = std::max(a.wz2 / a.model_dof - z_mean * z_mean, 0.0) / v;
     b.spread_ratio = std::sqrt(ratio2);
+    if (a.reference2 > 0.0 && a.dof_weight > 0.0) {
+      // Map mode: the millimetres as the ratio weighs its pixels. Unweighted, the few returns whose
+      // reference is most of their residual (v of centimetres, weight near 0 in the ratio) decided
+      // them, and a bin whose spread was 3.8 times the model's read "0.0 mm against 0.0 mm".
+      b.spread_predicted_m = std::sqrt(a.weighted_sigma2 / a.dof_weight);
+      b.spread_measured_m = b.spread_ratio * b.spread_predicted_m;
+    }
     b.misfit_bias = n * z_mean * z_mean / (2.0 * v);
     b.misfit_spread = ratio2 > 0.0 ? n * (-0.5 * std::log(ratio2) + 0.5 * ratio2 - 0.5) : 0.0;
     if (a.inliers >= kMinTested) {

@@ -6,7 +6,8 @@ the other frames saw), so where the missing effect depends on more than the binn
 bins differ in what they hold, not in how they judge it. Each ratio is computed as compare's
 misfit does: inliers (|z| <= 5 in both), sqrt(sum z^2 / n) for the scene and, for map mode, with
 the reference's own variance taken out, s = v / sd^2: sqrt(sum w (z^2 - s) / (1 - s) / sum w), with
-weights w = min(1, 2 (1 - s)).
+weights w = min(1, 2 (1 - s)). Per range bin also the median of map mode's incidence less the
+scene's (degrees; the surface normal map mode estimates, on which E4's predicted spread rests).
 
 usage: same_returns_spread.py SCENE_DIR MAP_DIR  ->  JSON on stdout
 """
@@ -31,6 +32,7 @@ def main():
     share = np.minimum(mapped["reference_variance_m2"][jm] / mapped["predicted_sd_m"][jm] ** 2, 1.0)
     weight = np.minimum(1.0 / np.maximum(1.0 - share, 1e-12), 2.0)  # w / (1 - s)
     inliers = (np.abs(zs) <= OUTLIER_Z) & (np.abs(zm) <= OUTLIER_Z) & (scene["range_m"][js] > 0)
+    incidence = mapped["incidence_deg"][jm].astype(float) - scene["incidence_deg"][js].astype(float)
     features = {"range": scene["ideal_range_m"][js], "reflectivity": 100.0 * scene["material_reflectivity"][js]}
     out = {"returns": int(len(js))}
     for name, edges in EDGES.items():
@@ -39,10 +41,13 @@ def main():
             s = inliers & (features[name] >= lo) & (features[name] < hi)
             if s.sum() == 0:
                 continue
-            rows.append({"bin": [lo, hi], "inliers": int(s.sum()),
+            row = {"bin": [lo, hi], "inliers": int(s.sum()),
                          "scene": float(np.sqrt(np.mean(zs[s] ** 2))),
                          "map": float(np.sqrt(np.sum(weight[s] * (zm[s] ** 2 - share[s])) /
-                                              np.sum(weight[s] * (1.0 - share[s]))))})
+                                              np.sum(weight[s] * (1.0 - share[s]))))}
+            if name == "range":
+                row["incidence_deg_map_less_scene"] = float(np.median(incidence[s]))
+            rows.append(row)
         out[name] = rows
     json.dump(out, sys.stdout)
 
