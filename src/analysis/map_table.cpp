@@ -139,12 +139,6 @@ class MapReferences {
     std::sort(near.begin(), near.end());
     return 0.5 * (static_cast<double>(near[(n - 1) / 2]) + static_cast<double>(near[n / 2]));
   }
-  Eigen::Vector3f own_frame_origin(const FramePoints& f, int m, int r) const {
-    return f.rotation[static_cast<size_t>(m)] * projector_.origin(m, r) + f.translation[static_cast<size_t>(m)];
-  }
-  Eigen::Vector3f own_frame_direction(const FramePoints& f, int m, int r) const {
-    return f.rotation[static_cast<size_t>(m)] * projector_.direction(m, r);
-  }
 
   Verdict reference(size_t k, int m, int r, Crossing& out, Patch& points) const {
     const FramePoints& own = frames_[k];
@@ -158,7 +152,10 @@ class MapReferences {
     // independent generator's darkest walls, approached head-on: correlation +0.15 and +0.21, the
     // spread 0.953 of the scene's; centred by the row: +0.01, 0.993).
     const double centre = row_range(own, m, r);
-    const Eigen::Vector3f x = own_frame_origin(own, m, r) + static_cast<float>(centre) * own_frame_direction(own, m, r);
+    const Eigen::Vector3f beam_origin =
+        own.rotation[static_cast<size_t>(m)] * projector_.origin(m, r) + own.translation[static_cast<size_t>(m)];
+    const Eigen::Vector3f beam_direction = own.rotation[static_cast<size_t>(m)] * projector_.direction(m, r);
+    const Eigen::Vector3f x = beam_origin + static_cast<float>(centre) * beam_direction;
     const double spacing = std::max(projector_.row_spacing_rad(), projector_.column_spacing_rad());
     // A noisy surface needs a wider patch to show its shape above its roughness: the patch grows
     // (twice, four times) until it does, so that the pixels left out are not the noisiest ones.
@@ -176,11 +173,8 @@ class MapReferences {
       if (fitted == Fit::kSurface) break;
       if (fitted == Fit::kNotOneSurface || grow == 2) return Verdict::kNotSurface;
     }
-    const Eigen::Vector3d origin =
-        (own.rotation[static_cast<size_t>(m)] * projector_.origin(m, r) + own.translation[static_cast<size_t>(m)])
-            .cast<double>();
-    const Eigen::Vector3d direction =
-        (own.rotation[static_cast<size_t>(m)] * projector_.direction(m, r)).cast<double>();
+    const Eigen::Vector3d origin = beam_origin.cast<double>();
+    const Eigen::Vector3d direction = beam_direction.cast<double>();
     double t = range, u = 0.0, v = 0.0;
     if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
     // The patch again, around where the beam met that surface rather than around the pixel's own
