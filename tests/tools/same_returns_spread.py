@@ -42,9 +42,9 @@ def main():
             if s.sum() == 0:
                 continue
             row = {"bin": [lo, hi], "inliers": int(s.sum()),
-                         "scene": float(np.sqrt(np.mean(zs[s] ** 2))),
-                         "map": float(np.sqrt(np.sum(weight[s] * (zm[s] ** 2 - share[s])) /
-                                              np.sum(weight[s] * (1.0 - share[s]))))}
+                   "scene": float(np.sqrt(np.mean(zs[s] ** 2))),
+                   "map": float(np.sqrt(np.sum(weight[s] * (zm[s] ** 2 - share[s])) /
+                                        np.sum(weight[s] * (1.0 - share[s]))))}
             if name == "range":
                 row["incidence_deg_map_less_scene"] = float(np.median(incidence[s]))
             rows.append(row)
