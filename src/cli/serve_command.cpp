@@ -313,8 +313,8 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::IsMember({"hold", "invalid", "standby"}))
       ->capture_default_str();
   sub->add_option("--cast-ahead-ms", flags->cast_ahead_ms,
-                  "with live poses: cast each packet this long before it is due (less: fresher poses, "
-                  "more: safer on a busy host)")
+                  "with live poses: cast each packet this long before it is due, and again if a pose arrives "
+                  "before then (more: safer on a busy host, more packets cast twice)")
       ->check(CLI::Range(0.1, 1000.0))
       ->capture_default_str();
   sub->add_option("--mount", flags->mount,

@@ -46,7 +46,7 @@ struct ServeFlags {
   std::string pose_clock = "sender";
   double pose_extrapolate_ms = 100.0;
   std::string pose_timeout = "invalid";
-  double cast_ahead_ms = 2.0;  // with live poses: how long before a packet is due it is cast
+  double cast_ahead_ms = 5.0;  // with live poses: how long before a packet is due it is first cast
   std::string mount;           // vehicle_from_sensor "x y z qx qy qz qw"
   bool per_column_poses = true;
   bool lock_step = false;           // the simulator owns time: pose times drive the sensor's clock

@@ -90,6 +90,7 @@ json live_pose_status(const LivePoses& poses, const StreamStats& stream, int64_t
            {"stalled", true},
            {"columns_without_pose", stream.columns_without_pose},
            {"withheld_packets", stream.withheld_packets},
+           {"recast_packets", stream.recast_packets},
            {"latency",
             {{"count", stream.pose_latency_count},
              {"p50_us", stream.pose_latency_p50_us},

@@ -212,7 +212,7 @@ void VirtualSensor::start() {
   subscription_ = sensor_.subscribe([this](const Sensor::StreamConfigPtr& config) { streamer_.apply(config); });
   if (lock_step_ && rig_.live) {
     pose_subscription_ = rig_.live->subscribe([this](const PoseMessage& pose) { streamer_.advance_to(pose.time_ns); });
-  } else if (stamp_pose_clock_) {
+  } else if (rig_.live) {
     pose_subscription_ = rig_.live->subscribe([this](const PoseMessage&) { streamer_.pose_arrived(); });
   }
   stats_pump_ = std::jthread([this](std::stop_token stop) { pump_stats(stop); });

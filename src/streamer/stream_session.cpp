@@ -41,7 +41,8 @@ StreamSession::StreamSession(asio::io_context& io, FaultInjector& link, StreamCo
     return;
   }
   render_ = std::make_unique<RenderAhead>(
-      *model_, timing_, RenderAhead::Options{options_.frames_ahead, options_.render_nice, options_.cast_ahead_ns});
+      *model_, timing_, RenderAhead::Options{options_.frames_ahead, options_.render_nice, options_.cast_ahead_ns},
+      options_.pose_news);
   blank_ = model_->make_frame_buffer();
 }
 
@@ -133,22 +134,27 @@ void StreamSession::on_lidar_deadline() {
 }
 
 void StreamSession::send_lidar_packet(int64_t now_ns) {
-  std::span<const uint8_t> bytes = render_->packet(frame_, packet_index_);
-  const bool stalled = bytes.empty();
-  if (stalled) {
+  // One read of what the worker published: the bytes, poses and freshness of one copy (render_ahead.h).
+  const std::optional<RenderAhead::Ready> ready = render_->ready(frame_, packet_index_);
+  std::span<const uint8_t> bytes;
+  if (ready) {
+    bytes = ready->bytes;
+    if (options_.withhold_unposed && !model_->packet_observed(*ready->encoded, packet_index_)) {
+      ++counters_.stats.withheld_packets;
+      return;
+    }
+  } else {
     ++counters_.stats.render_stalls;
     bytes = model_->blank_packet(frame_, packet_index_, blank_);
-  } else if (options_.withhold_unposed && !render_->observed(frame_, packet_index_)) {
-    ++counters_.stats.withheld_packets;
-    return;
   }
   if (link_.send_lidar(bytes, frame_, packet_index_, model_->packet_columns()[packet_index_],
                        config_->udp_port_lidar)) {
     counters_.record_lidar_send(now_ns - lidar_deadline_ns());
     // A blank (stalled) packet was cast with no pose, and its slot may be mid-render: only a packet
-    // the worker published (ready, acquire) reports the poses it carries.
-    if (!stalled) counters_.record_pose_use(render_->freshness(frame_, packet_index_), now_ns);
-    if (ground_truth_ && !stalled) ground_truth_->packet_sent(*model_, frame_, packet_index_, render_->encoded(frame_));
+    // the worker published reports the poses it carries.
+    if (!ready) return;
+    counters_.record_pose_use(ready->freshness, now_ns);
+    if (ground_truth_) ground_truth_->packet_sent(*model_, frame_, packet_index_, *ready->encoded);
   }
 }
 

@@ -47,6 +47,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     // with the host's load (it outlives the session); null: never spin.
     const int64_t* spin_ns = nullptr;
     int64_t cast_ahead_ns = 0;      // > 0: cast each packet only this long before it is due
+    PoseNews* pose_news = nullptr;  // with cast_ahead_ns: says when a pose arrived (outlives the session)
     bool withhold_unposed = false;  // do not send packets none of whose columns had a pose
     // The simulator owns time: no timers; advance_to() casts and sends what is due, in order.
     bool lock_step = false;
@@ -67,6 +68,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   void advance_to(uint64_t time_ns);
   uint64_t take_render_busy_ns() { return render_ ? render_->take_busy_ns() : 0; }
   uint64_t take_unposed_columns() { return render_ ? render_->take_unposed_columns() : 0; }
+  uint64_t take_recasts() { return render_ ? render_->take_recasts() : 0; }
 
  private:
   int64_t lidar_deadline_ns() const;

@@ -13,6 +13,7 @@
 #include "streamer/background_jobs.h"
 #include "streamer/fault_injector.h"
 #include "streamer/ground_truth.h"
+#include "streamer/pose_news.h"
 #include "streamer/stream_counters.h"
 #include "streamer/stream_session.h"
 #include "streamer/udp_sender.h"
@@ -78,6 +79,7 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
                                                 : std::make_unique<streamer_detail::GroundTruth>(options_.record_dir)),
       stats_timer_(io),
       spin_ns_(int64_t{options_.spin_us} * 1000),
+      pose_news_(std::make_unique<streamer_detail::PoseNews>()),
       jobs_(std::make_unique<streamer_detail::BackgroundJobs>(options_.render_nice)) {
   arm_stats_timer();
 }
@@ -138,6 +140,8 @@ void Streamer::start_paced_session() {
 }
 
 void Streamer::pose_arrived() {
+  pose_news_->arrived();
+  if (!options_.pose_clock_offset_ns) return;
   asio::post(io_, [this] {
     if (stopped_ || session_ || building_ || !config_ || !config_->streaming || options_.lock_step) return;
     start_paced_session();
@@ -219,6 +223,7 @@ std::shared_ptr<streamer_detail::StreamSession> Streamer::build_session(
   session_options.render_nice = options_.render_nice;
   session_options.spin_ns = &spin_ns_;
   session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
+  session_options.pose_news = pose_news_.get();
   session_options.withhold_unposed = options_.withhold_unposed;
   session_options.lock_step = options_.lock_step;
   return std::make_shared<streamer_detail::StreamSession>(io_, *faults_, *counters_, ground_truth_.get(), config,

@@ -33,6 +33,7 @@ void Streamer::report_stats() {
   StreamStats& stats = counters_->stats;
   const uint64_t busy_ns = session_ ? session_->take_render_busy_ns() : 0;
   stats.columns_without_pose += session_ ? session_->take_unposed_columns() : 0;
+  stats.recast_packets += session_ ? session_->take_recasts() : 0;
   stats.render_load = static_cast<double>(busy_ns) / static_cast<double>(kStatsPeriodNs);
   stats.skipped_packets = counters_->skipped_packets;
   stats.lateness_p50_us = counters_->lateness.percentile_us(0.5);

@@ -3,6 +3,7 @@
 // column timestamp and the pose it sent for that time. A wall must stay a wall while the sensor
 // turns at 90 deg/s, and must not when every column is cast from its frame's first pose.
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include "e2e/support/room.h"
 #include "e2e/support/sdk_client.h"
 #include "e2e/support/udp_socket.h"
+#include "lidartwin/pose/pose_message.h"
 #include "support/record_capture.h"
 #include "support/test_scene.h"
 
@@ -214,6 +216,127 @@ TEST(LivePoses, WithoutPerColumnPosesTheWallsSmearAsTheSensorTurns) {
   // Up to 9 degrees of turn between a frame's first and last column: decimetres off the walls.
   EXPECT_GT(quantile(distances, 0.5), 0.05);
   EXPECT_GT(quantile(distances, 0.95), 0.25);
+}
+
+// The rig holds the sensor still at `before`, then moves it to `after` at once (a teleport: no
+// velocity, so no extrapolation smears the change), sending poses every 5 ms with zero velocity.
+class JumpRig {
+ public:
+  JumpRig(uint16_t port, Eigen::Vector3d before, Eigen::Vector3d after, int64_t jump_ns)
+      : sender_("127.0.0.1", port), thread_([=, this] { run(before, after, jump_ns); }) {}
+  ~JumpRig() {
+    stop_ = true;
+    thread_.join();
+  }
+  // The time_ns of the first pose sent at `after` (0 until it is sent).
+  int64_t jumped_ns() const { return jumped_ns_.load(); }
+
+ private:
+  void run(const Eigen::Vector3d& before, const Eigen::Vector3d& after, int64_t jump_ns) {
+    for (uint32_t sequence = 1; !stop_; ++sequence) {
+      PoseMessage message;
+      message.sequence = sequence;
+      message.time_ns = monotonic_ns();
+      const bool jumped = message.time_ns >= jump_ns;
+      message.pose.translation = jumped ? after : before;
+      message.velocity = Eigen::Vector3d::Zero();
+      message.angular_rate = Eigen::Vector3d::Zero();
+      const auto bytes = encode_pose_message(message);
+      sender_.send(std::vector<uint8_t>(bytes.begin(), bytes.end()));
+      if (jumped && jumped_ns_.load() == 0) jumped_ns_ = message.time_ns;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
+
+  PoseSender sender_;
+  std::atomic<bool> stop_{false};
+  std::atomic<int64_t> jumped_ns_{0};
+  std::thread thread_;
+};
+
+// Which of two sensor positions a column's returns fit (within 3 cm of the room), counting only the
+// returns that fit one and not the other (the floor fits both when the sensor moves sideways).
+enum class Fit { kNeither, kBefore, kAfter };
+Fit column_fit(const Scan& scan, int c, const test::SdkIntrinsics& intrinsics, const Eigen::Vector3d& before,
+               const Eigen::Vector3d& after) {
+  int only_before = 0, only_after = 0;
+  for (int r = 0; r < scan.height; ++r) {
+    const uint32_t range_mm = scan.at(ChannelField::kRange, c, r);
+    if (range_mm == 0) continue;
+    const Eigen::Vector3d point = intrinsics.point(r, c, range_mm);
+    const bool fits_before = distance_to_room(point + before) < 0.03;
+    const bool fits_after = distance_to_room(point + after) < 0.03;
+    only_before += fits_before && !fits_after;
+    only_after += fits_after && !fits_before;
+  }
+  if (only_before >= 3 && only_before > 2 * only_after) return Fit::kBefore;
+  if (only_after >= 3 && only_after > 2 * only_before) return Fit::kAfter;
+  return Fit::kNeither;
+}
+
+// --cast-ahead-ms 50 (what a busy host needs): every packet is cast 50 ms before it is due, so
+// without casting again the sensor would be seen where it was 50 ms before. A pose arriving after a
+// packet was cast must still reach it: the packets due 8-45 ms after the sensor jumped show it
+// where it jumped to (all of them would show the old place if packets were cast only once).
+TEST(LivePoses, APoseArrivingAfterAPacketWasCastReachesItBeforeItIsSent) {
+  Daemon daemon("127.0.0.1", 0,
+                {"--profile", "os1-32", "--scene", empty_room_scene().string(), "--threads", "1", "--seed", "3",
+                 "--pose-udp", "127.0.0.1:0", "--pose-clock", "monotonic", "--cast-ahead-ms", "50"});
+  UdpSocket lidar;
+  std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
+  SensorHttp& http = *client;
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "1024x10";
+  const json metadata_json = sdk016_init_client(http, request);
+  const Metadata metadata = parse(metadata_json);
+  const auto metadata_path = scratch_dir() / "jump_metadata.json";
+  std::ofstream(metadata_path) << metadata_json.dump();
+  const test::SdkIntrinsics intrinsics = test::SdkIntrinsics::load(metadata_path);
+  const Eigen::Vector3d before(-2.0, 0.0, 1.5), after(1.5, 1.0, 1.5);
+  std::vector<BatchedFrame> scans;
+  int64_t jumped_ns = 0;
+  {
+    JumpRig rig(pose_udp_port(daemon.log()), before, after, monotonic_ns() + 1'200'000'000);
+    std::this_thread::sleep_for(std::chrono::milliseconds(900));
+    lidar.drain();
+    ScanBatcher batcher(metadata.format);
+    scans = receive_scans(lidar, batcher, 6, std::chrono::seconds(15));
+    jumped_ns = rig.jumped_ns();
+  }
+  ASSERT_EQ(scans.size(), 6u);
+  ASSERT_NE(jumped_ns, 0);
+  // Columns by their time after the jump: well before, in the window cast before the jump, after it.
+  std::array<std::array<int, 3>, 3> counts{};  // [earlier / window / later][neither, before, after]
+  for (const BatchedFrame& frame : scans) {
+    for (int c = 0; c < frame.scan.width; ++c) {
+      if (!(frame.scan.status[static_cast<size_t>(c)] & 1u)) continue;
+      const int64_t since_ms =
+          (static_cast<int64_t>(frame.scan.timestamp_ns[static_cast<size_t>(c)]) - jumped_ns) / 1'000'000;
+      const int when = since_ms < -10 ? 0 : since_ms >= 8 && since_ms < 45 ? 1 : since_ms >= 60 ? 2 : -1;
+      if (when < 0) continue;
+      ++counts[static_cast<size_t>(when)][static_cast<size_t>(column_fit(frame.scan, c, intrinsics, before, after))];
+    }
+  }
+  const auto share = [&counts](size_t when, Fit fit) {
+    const auto& row = counts[when];
+    return static_cast<double>(row[static_cast<size_t>(fit)]) / std::max(1, row[0] + row[1] + row[2]);
+  };
+  std::printf("columns seen from the old / new place: before the jump %d / %d, 8-45 ms after %d / %d, later %d / %d\n",
+              counts[0][1], counts[0][2], counts[1][1], counts[1][2], counts[2][1], counts[2][2]);
+  // The classification itself: the columns long before and after show where the rig said.
+  EXPECT_GT(counts[0][1], 1000);
+  EXPECT_GT(share(0, Fit::kBefore), 0.95);
+  EXPECT_GT(counts[2][2], 1000);
+  EXPECT_GT(share(2, Fit::kAfter), 0.95);
+  // The window: about 380 columns, all cast 50 ms ahead with the old place; most cast again.
+  EXPECT_GT(counts[1][0] + counts[1][1] + counts[1][2], 300);
+  EXPECT_GT(share(1, Fit::kAfter), 0.5);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // the streamer's stats are once a second
+  const json status = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
+  EXPECT_GT(status["recast_packets"].get<int>(), 0) << status.dump(2);
+  client.reset();  // closes the keep-alive connection, so the daemon stops at once
+  EXPECT_EQ(daemon.stop(), 0) << daemon.log();
 }
 
 json pose_json(uint32_t sequence, int64_t time_ns, double qw = 1.0) {

@@ -39,9 +39,11 @@ struct StreamStats {
   double render_load = 0.0;  // render time / real time over the last second (1.0 = saturated)
   // Live poses (docs/live-poses.md): columns in the window sent unobserved for want of a pose,
   // packets withheld for the same reason (timeout policy "standby"), and the latency from a
-  // pose's arrival to the first packet cast with it.
+  // pose's arrival to the first packet cast with it; packets cast a second time because a pose
+  // arrived after their first cast, before they were due.
   uint64_t columns_without_pose = 0;
   uint64_t withheld_packets = 0;
+  uint64_t recast_packets = 0;
   uint64_t pose_latency_count = 0;
   double pose_latency_p50_us = 0.0;
   double pose_latency_p99_us = 0.0;

@@ -27,6 +27,7 @@ struct StreamCounters;
 class GroundTruth;
 class FaultInjector;
 class BackgroundJobs;
+class PoseNews;
 }  // namespace streamer_detail
 
 // The sensor's own faults a FaultPlan schedules (reset_at, standby_at, error_at): the streamer
@@ -56,8 +57,9 @@ struct StreamerOptions {
   // spins only while the host's CPUs are not contended (streamer/host_load.h): on a full host the
   // spin would be taken from rendering, its own or other daemons'.
   int spin_us = 100;
-  // Live poses (docs/live-poses.md): > 0 casts each packet only this long before it is due, so the
-  // newest pose reaches it (frames_ahead still bounds the buffers); 0 casts as far ahead as it can.
+  // Live poses (docs/live-poses.md): > 0 casts each packet first this long before it is due, and
+  // again if a pose arrives before it is due (frames_ahead still bounds the buffers); 0 casts as
+  // far ahead as it can.
   double cast_ahead_ms = 0.0;
   bool withhold_unposed = false;  // timeout policy "standby": packets with no posed column are not sent
   // The simulator owns time (docs/live-poses.md, "Lock-step"): nothing is sent on the host's clock;
@@ -107,7 +109,8 @@ class Streamer {
   void apply(std::shared_ptr<const StreamConfig> config);
   // Any thread. Lock-step only: the simulation's time is now time_ns.
   void advance_to(int64_t time_ns);
-  // Any thread. With pose_clock_offset_ns: a pose arrived, a waiting config may start.
+  // Any thread: a live pose arrived. The render worker casts again, with it, the packets it cast
+  // before it that are not yet due; with pose_clock_offset_ns, a waiting config may start.
   void pose_arrived();
   // Any thread: the stats as of the last once-a-second update. The send clock never waits for a
   // reader (it skips an update rather than block), so a reader may be up to a second behind.
@@ -158,6 +161,7 @@ class Streamer {
   uint64_t warned_withheld_ = 0;
   int64_t last_warning_ns_ = 0;
   bool stopped_ = false;
+  std::unique_ptr<streamer_detail::PoseNews> pose_news_;  // read by the sessions' render workers
   // Last: sessions it builds or retires are done with before the members above go.
   std::unique_ptr<streamer_detail::BackgroundJobs> jobs_;
 };
