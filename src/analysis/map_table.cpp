@@ -30,7 +30,6 @@ constexpr size_t kQuadricPoints = 24;              // from this many points the 
 constexpr double kMinPatchM = 0.15;                // half-width of the patch at short range
 constexpr double kMaxCosGrazing = 0.0871557;       // cos 85 degrees
 constexpr double kMinNormalAgreement = 0.9063078;  // cos 25 degrees
-constexpr double kWidenBelowCos = 0.5;             // cos 60 degrees (MapReferences: the second gather)
 
 enum class Verdict { kCompared, kEdge, kUnsupported, kNotSurface, kOffSurface, kGrazing };
 
@@ -179,19 +178,18 @@ class MapReferences {
     if (!cross(s, origin, direction, t, u, v)) return Verdict::kGrazing;
     // The patch again, around where the beam met that surface rather than around the pixel's own
     // point, its points kept by where their beams meet the surface, and refitted along the beams
-    // (select_by_beams, fit_along_beams). At grazing incidence it is gathered wider than it is kept,
-    // by three of the points' spreads across the surface: a point errs along its beam, there
-    // mostly along the surface, and gathered by its measured position within the radius kept, a
-    // point at the rim would be in or out by its own noise (the far rim keeping the points that
-    // fell short, the near rim those that overshot: the surface tilted towards the sensor, by 1.7
-    // degrees on the ground at 8-13 m with the shipped os1-64 profile's 5-7 cm there, and E4's
-    // spread predicted from that incidence 12 % low). Below 60 degrees the noise runs mostly
-    // across the surface and the patch is gathered as it is kept.
+    // (select_by_beams, fit_along_beams). It is gathered wider than it is kept, by three of the
+    // points' spreads along the surface (their spread across it x tan theta): a point errs along its
+    // beam, so away from normal incidence partly along the surface, and gathered by its measured
+    // position within the radius kept, a point at the rim would be in or out by its own noise (the
+    // far rim keeping the points that fell short, the near rim those that overshot: the surface
+    // tilted towards the sensor, by 1.7 degrees on the ground at 8-13 m with the shipped os1-64
+    // profile's 5-7 cm there, and E4's spread predicted from that incidence 12 % low; by 0.6-1.3
+    // degrees on the independent generator's walls at 15-50 degrees).
     const Eigen::Vector3d first_crossing(u, v, s.height(u, v));
     const double kept_radius = 1.5 * half;
     const double cos_first = std::clamp(std::abs(s.rise(u, v, local_direction(s, direction))), kMaxCosGrazing, 1.0);
-    const double along_surface =
-        cos_first < kWidenBelowCos ? s.robust_height * std::sqrt(1.0 - cos_first * cos_first) / cos_first : 0.0;
+    const double along_surface = s.robust_height * std::sqrt(1.0 - cos_first * cos_first) / cos_first;
     const double gather_radius = std::min(kept_radius + 3.0 * along_surface, 2.0 * kept_radius);
     const double widen = gather_radius / kept_radius;
     gather(k, (origin + t * direction).cast<float>(), gather_radius, static_cast<int>(std::ceil(widen * rows)),
