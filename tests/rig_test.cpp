@@ -1,6 +1,7 @@
 // Several VirtualSensors in one process, as a rig holds them: one scene, one motion, one io_context
 // and one worker pool. Each answers on its own address and sends its own packets, and an SDK-1.0
 // client of each gets complete scans carrying its sensor's serial number.
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -10,6 +11,7 @@
 
 // Eigen (through lidartwin's headers) before httplib (through sdk_client.h): <resolv.h>, which
 // httplib includes, defines a macro `res` that breaks Eigen's product kernels.
+#include "lidartwin/pose/live_poses.h"
 #include "lidartwin/pose/pose_source.h"
 #include "lidartwin/profile/sensor_profile.h"
 #include "lidartwin/rig/virtual_sensor.h"
@@ -42,12 +44,17 @@ VirtualSensorSetup setup_for(const std::string& address, const std::string& seri
   return setup;
 }
 
-TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
+Scene room_scene() {
   const auto dir = std::filesystem::temp_directory_path() / "lidartwin_rig_test";
   std::filesystem::create_directories(dir);
   test::write_glb(dir / "room.glb", {test::box("room", {-4, -3, -1.5}, {4, 3, 1.5}, 0.4f)});
-  const Scene scene = Scene::load(dir / "room.glb");
+  Scene scene = Scene::load(dir / "room.glb");
   std::filesystem::remove_all(dir);
+  return scene;
+}
+
+TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
+  const Scene scene = room_scene();
   const StaticPose poses(Pose{});
   asio::io_context io;
   WorkerPool pool(2);
@@ -106,6 +113,65 @@ TEST(Rig, SensorsShareOneScenePoolAndIoContextAndKeepTheirOwnIdentity) {
   guard.reset();
   io_thread.join();
   for (auto& sensor : sensors) sensor->stop();
+}
+
+// Live poses while the sensor streams (under ThreadSanitizer in tools/test): a pose arriving after
+// a packet was cast has it cast again into the packet's second buffer, on the render worker, while
+// the send clock reads whichever copy was published (render_ahead.h). The stream stays whole, and
+// packets are cast again.
+TEST(Rig, LivePosesCastPacketsAgainWhileTheSendClockReadsThem) {
+  const Scene scene = room_scene();
+  LivePoseOptions options;
+  options.clock = PoseClock::kMonotonic;
+  const int64_t epoch = host_steady_ns();
+  LivePoses live(options, epoch);
+  asio::io_context io;
+  WorkerPool pool(2);
+  const RigContext rig{io,    scene, live,    pool,
+                       epoch, &live, nullptr, std::make_shared<const TimeBase>(TimeBase::from_host())};
+  VirtualSensorSetup setup = setup_for("127.0.0.1", "122201000003");
+  setup.streamer.cast_ahead_ms = 20;  // every packet waits long enough for a pose or two
+  VirtualSensor sensor(rig, setup);
+  sensor.start();
+  auto guard = asio::make_work_guard(io);
+  std::thread io_thread([&io] { io.run(); });
+  std::atomic<bool> flying{true};
+  std::thread vehicle([&] {  // a slow turn, a pose every 5 ms
+    for (uint32_t sequence = 1; flying; ++sequence) {
+      PoseMessage message;
+      message.sequence = sequence;
+      message.time_ns = host_steady_ns();
+      const double t = static_cast<double>(message.time_ns - epoch) * 1e-9;
+      message.pose.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * t, Eigen::Vector3d::UnitZ()));
+      live.receive(message, host_steady_ns());
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+
+  UdpSocket lidar;
+  e2e::SensorHttp http(sensor.http().address(), sensor.http().port());
+  e2e::ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "512x10";
+  const Metadata metadata = e2e::parse(e2e::sdk10_sensor_packet_source(http, request));
+  ScanBatcher batcher(metadata.format);
+  e2e::expect_complete_scans(e2e::receive_scans(lidar, batcher, 4, std::chrono::seconds(15)), metadata, 4);
+  e2e::json status;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  do {  // the streamer's stats reach the endpoint once a second
+    status = e2e::json::parse(http.raw_get("/lidartwin/v1/pose")->body);
+    if (status.at("recast_packets").get<uint64_t>() > 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  } while (std::chrono::steady_clock::now() < deadline);
+  EXPECT_GT(status.at("recast_packets").get<uint64_t>(), 0u) << status.dump(2);
+  EXPECT_EQ(status.at("columns_without_pose").get<uint64_t>(), 0u) << status.dump(2);
+
+  flying = false;
+  vehicle.join();
+  asio::post(io, [&] { sensor.stop_streaming(); });
+  guard.reset();
+  io_thread.join();
+  sensor.stop();
 }
 
 }  // namespace
