@@ -37,7 +37,8 @@ class RenderAhead {
     // The worker's nice value (it also leaves any real-time policy it inherited, so the send clock
     // wins the CPU when a deadline comes).
     int worker_nice = 0;
-    // > 0: cast each packet no earlier than this before its deadline, one packet at a time.
+    // > 0 (paced): cast each packet first this long before its deadline, one packet at a time, and
+    // again when a pose arrives before it is due (the file comment).
     int64_t cast_ahead_ns = 0;
   };
   // model must outlive this; timing places its packets on the steady clock. news (may be null; must
