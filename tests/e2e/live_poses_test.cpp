@@ -101,6 +101,22 @@ struct LiveRun {
   std::string log;
 };
 
+// A client configures 1024x10 to `lidar` and reads the metadata and the beams' intrinsics as the SDK
+// would (from a file named `name`).
+struct Configured {
+  Metadata metadata;
+  test::SdkIntrinsics intrinsics;
+};
+Configured configure_1024x10(SensorHttp& http, const UdpSocket& lidar, const std::string& name) {
+  ConfigRequest request;
+  request.lidar_port = lidar.port();
+  request.lidar_mode = "1024x10";
+  const json metadata = sdk016_init_client(http, request);
+  const auto metadata_path = scratch_dir() / (name + ".json");
+  std::ofstream(metadata_path) << metadata.dump();
+  return {parse(metadata), test::SdkIntrinsics::load(metadata_path)};
+}
+
 LiveRun fly(bool per_column_poses, bool bad_messages) {
   std::vector<std::string> args{"--profile",  "os1-32",      "--scene",      empty_room_scene().string(),
                                 "--threads",  "1",           "--seed",       "3",
@@ -110,15 +126,10 @@ LiveRun fly(bool per_column_poses, bool bad_messages) {
   UdpSocket lidar;
   std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
   SensorHttp& http = *client;
-  ConfigRequest request;
-  request.lidar_port = lidar.port();
-  request.lidar_mode = "1024x10";
   LiveRun run;
-  const json metadata = sdk016_init_client(http, request);
-  run.metadata = parse(metadata);
-  const auto metadata_path = scratch_dir() / ("live_metadata_" + std::to_string(per_column_poses) + ".json");
-  std::ofstream(metadata_path) << metadata.dump();
-  run.intrinsics = test::SdkIntrinsics::load(metadata_path);
+  Configured configured = configure_1024x10(http, lidar, "live_metadata_" + std::to_string(per_column_poses));
+  run.metadata = std::move(configured.metadata);
+  run.intrinsics = std::move(configured.intrinsics);
   run.turn = Turn{monotonic_ns()};
   {
     RigThread rig(pose_udp_port(daemon.log()), run.turn, bad_messages);
@@ -285,14 +296,7 @@ TEST(LivePoses, APoseArrivingAfterAPacketWasCastReachesItBeforeItIsSent) {
   UdpSocket lidar;
   std::optional<SensorHttp> client(std::in_place, daemon.address(), daemon.http_port());
   SensorHttp& http = *client;
-  ConfigRequest request;
-  request.lidar_port = lidar.port();
-  request.lidar_mode = "1024x10";
-  const json metadata_json = sdk016_init_client(http, request);
-  const Metadata metadata = parse(metadata_json);
-  const auto metadata_path = scratch_dir() / "jump_metadata.json";
-  std::ofstream(metadata_path) << metadata_json.dump();
-  const test::SdkIntrinsics intrinsics = test::SdkIntrinsics::load(metadata_path);
+  const auto [metadata, intrinsics] = configure_1024x10(http, lidar, "jump_metadata");
   const Eigen::Vector3d before(-2.0, 0.0, 1.5), after(1.5, 1.0, 1.5);
   std::vector<BatchedFrame> scans;
   int64_t jumped_ns = 0;
