@@ -180,15 +180,24 @@ TEST_F(CompareMap, WithoutATrajectoryTheFramesAreRegisteredToEachOther) {
   EXPECT_GT(report["inputs"]["map"]["compared"].get<size_t>(), 30000u);
 }
 
-// A capture of one frame has no other frame to make a reference of (the OS-1-32-G sample), and
+// A capture of one frame has no other frame to make a reference of (the OS-1-32-G sample): map mode
+// says so and makes each return's reference from the frame's own returns around it (--within-frame);
 // --skip-frames cannot leave out every frame; --frames 1 scores one frame against the others.
-TEST_F(CompareMap, MapModeNeedsTwoFrames) {
+TEST_F(CompareMap, OneFrameIsComparedWithinTheFrame) {
   const std::string samples = kSource + "/tests/data/ouster-samples/";
   const CliRun one =
-      run_cli("compare --map --capture " + samples + "OS-1-32-G_v2.1.1_1024x10.pcap --metadata " + samples +
+      run_cli("compare --map --no-plots --capture " + samples + "OS-1-32-G_v2.1.1_1024x10.pcap --metadata " + samples +
               "OS-1-32-G_v2.1.1_1024x10.json --profile os1-32 --out " + (drive_ / "map_one").string());
-  EXPECT_NE(one.exit_code, 0);
-  EXPECT_NE(one.output.find("at least 2"), std::string::npos) << one.output;
+  ASSERT_EQ(one.exit_code, 0) << one.output;
+  EXPECT_NE(one.output.find("holds one frame"), std::string::npos) << one.output;
+  EXPECT_NE(one.output.find("map (within each frame)"), std::string::npos) << one.output;
+  const nlohmann::json report = read_json(drive_ / "map_one" / "report.json");
+  EXPECT_TRUE(report["inputs"]["map"]["within_frame"].get<bool>());
+  EXPECT_GT(report["inputs"]["map"]["compared"].get<size_t>(), 1000u);
+  const CliRun needs_map = run_cli("compare --within-frame" + capture_args() + " --profile " + os1_64() + " --out " +
+                                   (drive_ / "within_alone").string());
+  EXPECT_NE(needs_map.exit_code, 0);
+  EXPECT_NE(needs_map.output.find("--map"), std::string::npos) << needs_map.output;
   const CliRun none = run_cli("compare --map --skip-frames 1000" + capture_args() + " --profile " + os1_64() +
                               " --out " + (drive_ / "map_none").string());
   EXPECT_NE(none.exit_code, 0);

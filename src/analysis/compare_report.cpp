@@ -241,7 +241,8 @@ nlohmann::json inputs_json(const CompareInputs& in) {
                     {"unsupported", x.unsupported},
                     {"not_surface", x.not_surface},
                     {"off_surface", x.off_surface},
-                    {"grazing", x.grazing}}}};
+                    {"grazing", x.grazing}}},
+                  {"within_frame", in.map_within_frame}};
   }
   return out;
 }

@@ -30,6 +30,7 @@ constexpr size_t kQuadricPoints = 24;              // from this many points the 
 constexpr double kMinPatchM = 0.15;                // half-width of the patch at short range
 constexpr double kMaxCosGrazing = 0.0871557;       // cos 85 degrees
 constexpr double kMinNormalAgreement = 0.9063078;  // cos 25 degrees
+constexpr double kMaxRowStepM = 1.0;               // within a frame: its scan lines' spacing on a surface
 
 enum class Verdict { kCompared, kEdge, kUnsupported, kNotSurface, kOffSurface, kGrazing };
 
@@ -117,8 +118,9 @@ struct Surface {
 
 class MapReferences {
  public:
-  MapReferences(const std::vector<FramePoints>& frames, const BeamProjector& projector, int neighbour_frames)
-      : frames_(frames), projector_(projector), neighbour_frames_(neighbour_frames) {
+  MapReferences(const std::vector<FramePoints>& frames, const BeamProjector& projector, int neighbour_frames,
+                bool within_frame)
+      : frames_(frames), projector_(projector), neighbour_frames_(neighbour_frames), within_frame_(within_frame) {
     column_reach_ =
         std::max(1, static_cast<int>(std::lround(projector.row_spacing_rad() / projector.column_spacing_rad())));
   }
@@ -142,6 +144,18 @@ class MapReferences {
   Verdict reference(size_t k, int m, int r, Crossing& out, Patch& points) const {
     const FramePoints& own = frames_[k];
     if (beside_step(own, projector_, m, r, column_reach_)) return Verdict::kEdge;
+    // Within a frame a pixel's reference is made of its neighbours, and mixed pixels (E6) near an
+    // edge are mixed alike: a neighbour beside a step leaves the pixel out too (with one pixel's
+    // margin, on the yard drive a fence's returns took references 0.2 m off that followed
+    // their own error, correlation +0.3).
+    if (within_frame_) {
+      for (const auto& [dm, dr] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
+        const std::optional<BeamProjector::Pixel> p = projector_.beside(m, r, dm, dr);
+        if (p && own.returned(own.index(p->m, p->r)) && beside_step(own, projector_, p->m, p->r, column_reach_)) {
+          return Verdict::kEdge;
+        }
+      }
+    }
     const size_t i = own.index(m, r);
     const double range = static_cast<double>(own.range_m[i]);
     // The first patch is gathered around the return's point as its row saw it, not as it measured
@@ -166,8 +180,12 @@ class MapReferences {
       half = base * static_cast<double>(1 << grow);
       rows = std::clamp(static_cast<int>(std::ceil(half / (centre * projector_.row_spacing_rad()))), 1, 24);
       columns = std::clamp(static_cast<int>(std::ceil(half / (centre * projector_.column_spacing_rad()))), 1, 48);
-      const size_t frames_used = gather(k, x, 1.5 * half, rows, columns, points);
-      if (points.size() < kMinPoints || frames_used < 2) return Verdict::kUnsupported;
+      const size_t frames_used = gather(k, i, x, 1.5 * half, rows, columns, points);
+      // One frame's returns are sparser than several frames': the patch grows until it holds enough
+      // points for a quadric (a plane through a curved surface's points lies behind its bulge at the
+      // patch's centre: tanks at 13-35 m read 12-22 mm long).
+      if (within_frame_ && points.size() < kQuadricPoints && grow < 2) continue;
+      if (points.size() < kMinPoints || frames_used < (within_frame_ ? 1u : 2u)) return Verdict::kUnsupported;
       const Fit fitted = fit(points, s);
       if (fitted == Fit::kSurface) break;
       if (fitted == Fit::kNotOneSurface || grow == 2) return Verdict::kNotSurface;
@@ -192,7 +210,7 @@ class MapReferences {
     const double along_surface = s.robust_height * std::sqrt(1.0 - cos_first * cos_first) / cos_first;
     const double gather_radius = std::min(kept_radius + 3.0 * along_surface, 2.0 * kept_radius);
     const double widen = gather_radius / kept_radius;
-    gather(k, (origin + t * direction).cast<float>(), gather_radius, static_cast<int>(std::ceil(widen * rows)),
+    gather(k, i, (origin + t * direction).cast<float>(), gather_radius, static_cast<int>(std::ceil(widen * rows)),
            static_cast<int>(std::ceil(widen * columns)), points);
     if (!select_by_beams(points, s, first_crossing, kept_radius)) return Verdict::kUnsupported;
     if (!fit_along_beams(s)) return Verdict::kNotSurface;
@@ -209,6 +227,19 @@ class MapReferences {
     }
     const double cos_incidence = std::abs(normal.dot(d));
     if (cos_incidence < kMaxCosGrazing) return Verdict::kGrazing;
+    // Within a frame, a surface across the scan lines is known only from the lines beside the
+    // pixel's own: where they lie more than kMaxRowStepM apart on it (the ground beyond 80 degrees
+    // at 13-20 m), a patch wide enough to hold them spans the ground's unevenness too (on the
+    // yard's ground there: the spread 1.2 times the scene's).
+    // The rows above and below must both have returned: at the frame's top or bottom row, or at a
+    // surface's rim, the patch lies on one side of the pixel and its surface is extrapolated there
+    // (the drive's top beams on structures at 13-20 m: incidence 75 degrees for 35-48, references
+    // 0.2 m off).
+    if (within_frame_) {
+      const std::optional<double> step = scan_line_step(own, m, r);
+      if (!step) return Verdict::kUnsupported;
+      if (*step > kMaxRowStepM) return Verdict::kGrazing;
+    }
     if (!(t > 0.0) || std::abs(t - range) > std::max(1.0, 0.1 * range)) return Verdict::kOffSurface;
     out.range_m = static_cast<float>(t);
     out.cos_incidence = static_cast<float>(cos_incidence);
@@ -451,15 +482,18 @@ class MapReferences {
   }
 
   // The points of frames k - n .. k + n but k within `radius` of x, from a window of rows x columns
-  // around where x falls in each; returns how many frames gave some.
-  size_t gather(size_t k, const Eigen::Vector3f& x, double radius, int rows, int columns, Patch& points) const {
+  // around where x falls in each; returns how many frames gave some. Within a frame: frame k's own
+  // points but pixel `own` (its index in frame k).
+  size_t gather(size_t k, size_t own, const Eigen::Vector3f& x, double radius, int rows, int columns,
+                Patch& points) const {
     const auto radius2 = static_cast<float>(radius * radius);
     points.clear();
     size_t frames_used = 0;
-    const size_t first = k >= static_cast<size_t>(neighbour_frames_) ? k - static_cast<size_t>(neighbour_frames_) : 0;
-    const size_t last = std::min(frames_.size() - 1, k + static_cast<size_t>(neighbour_frames_));
+    const size_t reach = within_frame_ ? 0 : static_cast<size_t>(neighbour_frames_);
+    const size_t first = k >= reach ? k - reach : 0;
+    const size_t last = std::min(frames_.size() - 1, k + reach);
     for (size_t j = first; j <= last; ++j) {
-      if (j == k) continue;
+      if (j == k && !within_frame_) continue;
       const FramePoints& other = frames_[j];
       const BeamProjector::Pixel seed = projector_.project_world(other, x);
       const size_t before = points.size();
@@ -468,7 +502,7 @@ class MapReferences {
           const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
           if (!near) continue;
           const size_t t = other.index(near->m, near->r);
-          if (!other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
+          if ((j == k && t == own) || !other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
           points.points.push_back(other.world[t].cast<double>());
           points.beams.push_back(
               (other.rotation[static_cast<size_t>(near->m)] * projector_.direction(near->m, near->r)).cast<double>());
@@ -477,6 +511,19 @@ class MapReferences {
       frames_used += points.size() > before;
     }
     return frames_used;
+  }
+
+  // How far apart the scan lines lie on the surface at pixel (m, r): half the distance between the
+  // points of the rows above and below it, as measured (the fitted surface's normal would say, but
+  // where the lines are far apart it is what tilts: the ground at 83 degrees read 77). None when
+  // one of them is past the frame's rows or did not return.
+  std::optional<double> scan_line_step(const FramePoints& f, int m, int r) const {
+    const std::optional<BeamProjector::Pixel> above = projector_.beside(m, r, 0, -1);
+    const std::optional<BeamProjector::Pixel> below = projector_.beside(m, r, 0, 1);
+    if (!above || !below) return std::nullopt;
+    const size_t a = f.index(above->m, above->r), b = f.index(below->m, below->r);
+    if (!f.returned(a) || !f.returned(b)) return std::nullopt;
+    return 0.5 * static_cast<double>((f.world[a] - f.world[b]).norm());
   }
 
   // The normal of the pixel's own frame's points within `half` of it (world frame), when they
@@ -509,6 +556,7 @@ class MapReferences {
   const std::vector<FramePoints>& frames_;
   const BeamProjector& projector_;
   int neighbour_frames_;
+  bool within_frame_;
   int column_reach_ = 1;
 };
 
@@ -523,9 +571,12 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
   const MeasuredCapture& capture = setup.capture;
   const Metadata& metadata = capture.metadata;
   const LidarDataFormat& format = metadata.format;
-  if (capture.frames.size() < 2) {
-    throw InputError(fmt::format("--map: the capture has {} frame{}; a reference from other frames needs at least 2",
-                                 capture.frames.size(), capture.frames.size() == 1 ? "" : "s"));
+  if (capture.frames.empty()) throw InputError("--map: the capture has no complete frame");
+  if (capture.frames.size() < 2 && !setup.within_frame) {
+    throw InputError(
+        fmt::format("--map: the capture has {} frame; a reference from other frames needs at least 2 "
+                    "(--within-frame makes it from the frame's own returns)",
+                    capture.frames.size()));
   }
   std::vector<FramePoints> frames = analysis_detail::capture_points(capture);
   const PoseSpan span = setup.poses.span();
@@ -547,7 +598,7 @@ MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool) {
                                  frames.size() == 1 ? "" : "s"));
   }
   const BeamProjector projector(metadata);
-  const MapReferences references(frames, projector, setup.neighbour_frames);
+  const MapReferences references(frames, projector, setup.neighbour_frames, setup.within_frame);
   const PacketFormat packets(format);
   const double reach = cast_reach_m(setup.max_range_m, packets);
 

@@ -156,6 +156,7 @@ std::string next_fit_command(const CompareFlags& flags, const Diagnosis& diagnos
   if (m.skip_frames > 0) option("--skip-frames", std::to_string(m.skip_frames));
   if (m.static_mode) command += " --static";
   if (m.map_mode) command += " --map";
+  if (m.within_frame) command += " --within-frame";
   if (m.refine_pose) command += " --refine-pose";
   option("--profile", flags.profiles.back());
   for (const Replacement& r : diagnosis.replace) option("--replace", r.effect + "=" + r.with.effect);
@@ -176,11 +177,13 @@ void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
   if (in.map) {
     const MapExclusions& x = *in.map;
     const auto share = [&](size_t n) { return x.returns > 0 ? 100.0 * static_cast<double>(n) / x.returns : 0.0; };
+    const char* around = in.map_within_frame ? "other returns of their frame" : "other frames";
     std::printf(
-        "map: %zu of %zu returns compared (%.1f %%); left out: %zu beside depth steps, %zu with too few points of "
-        "other frames around them, %zu on no smooth surface, %zu off the surface other frames saw, %zu at grazing "
-        "incidence\n",
-        x.compared, x.returns, share(x.compared), x.edge, x.unsupported, x.not_surface, x.off_surface, x.grazing);
+        "map%s: %zu of %zu returns compared (%.1f %%); left out: %zu beside depth steps, %zu with too few points of "
+        "%s around them, %zu on no smooth surface, %zu off the surface %s saw, %zu at grazing incidence\n",
+        in.map_within_frame ? " (within each frame)" : "", x.compared, x.returns, share(x.compared), x.edge,
+        x.unsupported, around, x.not_surface, x.off_surface, in.map_within_frame ? "its neighbours" : "other frames",
+        x.grazing);
   }
   if (in.pose_refinement) {
     const PoseRefinement& r = *in.pose_refinement;

@@ -121,9 +121,19 @@ SceneComparison scene_table(const MeasuredFlags& flags, const Inputs& in, const 
 void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, const EffectChain& chain,
                const SensorProfile& profile, Steps& steps) {
   WorkerPool pool(flags.threads);
+  const bool within_frame = flags.within_frame || out.capture.frames.size() == 1;
+  if (within_frame && !flags.within_frame) {
+    std::fprintf(stderr,
+                 "note: %s holds one frame: each return is compared with a surface fitted to the same frame's "
+                 "returns around it, itself left out (--within-frame)\n",
+                 in.capture.string().c_str());
+  }
   std::unique_ptr<PoseSource> poses;
   if (!in.pose.empty()) {
     poses = load_measured_poses(in.pose);
+  } else if (within_frame) {
+    // A patch spans columns well under a millisecond apart: the frame's own motion does not show.
+    poses = std::make_unique<StaticPose>(Pose{});
   } else {
     steps.start("registering the frames to each other");
     RegistrationOptions options;
@@ -134,17 +144,19 @@ void map_table(const MeasuredFlags& flags, const Inputs& in, Measured& out, cons
     poses = std::make_unique<TrajectoryPoses>(trajectory, span);
     steps.done();
   }
-  steps.start("fitting each return's surface from the other frames and predicting it");
+  const char* step = within_frame ? "fitting each return's surface from its frame's other returns and predicting it"
+                                  : "fitting each return's surface from the other frames and predicting it";
+  steps.start(step);
   MapTableSetup setup{out.capture, *poses, in.pose.empty() ? 0.0 : flags.time_offset_s, chain, profile.max_range_m};
+  setup.within_frame = within_frame;
   setup.first_scored_frame = flags.skip_frames;
   setup.scored_frames = flags.frames;
-  setup.progress = [&steps](double fraction) {
-    steps.progress("fitting each return's surface from the other frames and predicting it", fraction);
-  };
+  setup.progress = [&steps, step](double fraction) { steps.progress(step, fraction); };
   MapTable map = build_map_table(setup, pool);
   steps.done();
   out.table = std::move(map.table);
   out.inputs.map = map.excluded;
+  out.inputs.map_within_frame = within_frame;
   // From here on the capture is the frames scored, as --frames and --skip-frames read it elsewhere.
   std::vector<BatchedFrame>& frames = out.capture.frames;
   const size_t end = flags.frames == 0 ? frames.size() : std::min(frames.size(), flags.skip_frames + flags.frames);
@@ -189,12 +201,16 @@ void add_measured_options(CLI::App* sub, MeasuredFlags& flags) {
                     ->excludes(pose)
                     ->excludes(offset)
                     ->excludes(refine);
-  sub->add_flag("--map", flags.map_mode,
-                "no scene: each return against a surface fitted to the other frames' points; the frames are "
-                "registered to each other (point to plane), or placed by --pose")
-      ->excludes(scene)
-      ->excludes(refine)
-      ->excludes(still);
+  auto* map = sub->add_flag("--map", flags.map_mode,
+                            "no scene: each return against a surface fitted to the other frames' points; the frames "
+                            "are registered to each other (point to plane), or placed by --pose")
+                  ->excludes(scene)
+                  ->excludes(refine)
+                  ->excludes(still);
+  sub->add_flag("--within-frame", flags.within_frame,
+                "with --map: each return against a surface fitted to its own frame's returns around it (itself "
+                "left out), no registration; what --map does for a capture of one frame")
+      ->needs(map);
 }
 
 Steps::Steps() : tty_(isatty(STDERR_FILENO) != 0) {}

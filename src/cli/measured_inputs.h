@@ -31,11 +31,12 @@ struct MeasuredFlags {
   int threads = 0;
   bool static_mode = false;
   bool map_mode = false;
+  bool within_frame = false;  // --map: references from each frame's own returns (also for a one-frame capture)
   bool refine_pose = false;
 };
 
 // --capture, --metadata, --scene, --pose, --time-offset, --frames, --skip-frames, --threads,
-// --refine-pose, --static and --map.
+// --refine-pose, --static, --map and --within-frame.
 void add_measured_options(CLI::App* sub, MeasuredFlags& flags);
 
 // The steps on stderr: on a terminal one line per step ("reading the capture ... 0.1 s"), a bar

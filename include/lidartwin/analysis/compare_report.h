@@ -97,6 +97,7 @@ struct CompareInputs {
   std::optional<PoseRefinement> pose_refinement;  // --refine-pose
   std::optional<FrameRegistration> registration;  // --map without --pose
   std::optional<MapExclusions> map;               // --map: what was compared and what left out
+  bool map_within_frame = false;                  // --map's references from each frame's own returns
   std::vector<std::string> material_names;        // the scene's, by material id (Embree geometry)
 };
 

@@ -13,6 +13,13 @@
 // below a third of the patch's extent: vegetation, wires, corners fail it); not farther than
 // max(1 m, 10 %) from it (a moving object, or what the other frames saw through a gap); incidence
 // below 85 degrees.
+//
+// Within a frame (MapTableSetup::within_frame, and a capture of one frame, as most published sample
+// captures are): the surface is fitted to the same frame's other returns around the pixel, the pixel
+// itself left out, which keeps its own noise out of its reference as leaving its frame out does.
+// It needs no trajectory: at a patch's scale (a few columns, under a millisecond apart) the frame's
+// own motion is far below the noise. What it cannot see: noise its neighbours share (a per-frame
+// or per-column range offset), which another frame's points would not.
 #include <cstddef>
 #include <functional>
 
@@ -26,7 +33,8 @@ struct MapTableSetup {
   double time_offset_s = 0.0;  // pose time = column timestamp + offset
   const EffectChain& chain;
   double max_range_m = 100.0;
-  int neighbour_frames = 3;  // frames on each side whose points make a pixel's reference
+  int neighbour_frames = 3;   // frames on each side whose points make a pixel's reference
+  bool within_frame = false;  // the pixel's own frame's other returns make its reference instead
   // The frames whose returns are scored (the table's frame 0 is first_scored_frame); every frame
   // of the capture makes references. A fit on some frames and a judgement on the others (held-out
   // frames) then both see surfaces made of the whole capture.
@@ -50,7 +58,8 @@ struct MapTable {
   MapExclusions excluded;
 };
 
-// Throws InputError when the capture has fewer than two frames or no pixel can be compared.
+// Throws InputError when the capture has fewer than two frames (unless within_frame) or no pixel
+// can be compared.
 MapTable build_map_table(const MapTableSetup& setup, WorkerPool& pool);
 
 }  // namespace lidartwin
