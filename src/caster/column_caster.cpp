@@ -76,12 +76,11 @@ struct LaneSource {
 };
 
 // Where each hit lies, measured in this project's own arithmetic: the distance along the ray to the
-// hit triangle's plane and that triangle's normal, from its vertices. Embree decides which triangle
-// a ray hits; its t and Ng come from kernels that differ between SSE, AVX2 and AVX-512 in their
-// last bits (one pixel in ten thousand read a different millimetre), so the same scene cast on two
-// CPUs would not give the same capture. The plane distance in double, without fused multiply-adds
-// (cmake/InstructionSet.cmake), is the same on every CPU. A ray grazing its triangle's plane
-// (dot(d, n) = 0) keeps Embree's t.
+// hit triangle's plane and that triangle's normal, from its vertices (the scene's TrianglePlane). Embree decides which
+// triangle a ray hits; its t and Ng come from kernels that differ between SSE, AVX2 and AVX-512 in their last bits (one
+// pixel in ten thousand read a different millimetre), so the same scene cast on two CPUs would not give the same
+// capture. The plane distance in double, without fused multiply-adds (cmake/InstructionSet.cmake), is the same on every
+// CPU. A ray grazing its triangle's plane (dot(d, n) = 0) keeps Embree's t.
 void measure_hits(const RTCRayHit16& packet, const TriangleMesh* meshes, int used, float* t, float* nx, float* ny,
                   float* nz) {
   for (int i = 0; i < kLanes; ++i) {
@@ -92,14 +91,9 @@ void measure_hits(const RTCRayHit16& packet, const TriangleMesh* meshes, int use
     nz[lane] = packet.hit.Ng_z[lane];
     const unsigned geom_id = packet.hit.geomID[lane];
     if (i >= used || geom_id == RTC_INVALID_GEOMETRY_ID) continue;
-    const TriangleMesh& mesh = meshes[geom_id];
-    const uint32_t* corner = mesh.indices + size_t{3} * packet.hit.primID[lane];
-    const auto vertex = [&mesh](uint32_t k) {
-      const float* v = mesh.vertices + size_t{3} * k;
-      return Eigen::Vector3d(v[0], v[1], v[2]);
-    };
-    const Eigen::Vector3d v0 = vertex(corner[0]);
-    const Eigen::Vector3d n = (vertex(corner[1]) - v0).cross(vertex(corner[2]) - v0);
+    const TrianglePlane& plane = meshes[geom_id].planes[packet.hit.primID[lane]];
+    const Eigen::Vector3d v0(plane.corner[0], plane.corner[1], plane.corner[2]);
+    const Eigen::Vector3d n(plane.normal[0], plane.normal[1], plane.normal[2]);
     const Eigen::Vector3d origin(packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]);
     const Eigen::Vector3d direction(packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]);
     const double along = direction.dot(n);

@@ -4,6 +4,7 @@
 
 #include <cstring>
 #include <stdexcept>
+#include <vector>
 
 #include <embree3/rtcore.h>
 
@@ -36,14 +37,32 @@ RTCGeometry make_geometry(RTCDevice device, const scene_detail::MeshPart& part, 
   return geometry;
 }
 
+// Each triangle's plane (TrianglePlane), in the arithmetic measure_hits used to do per hit.
+std::vector<TrianglePlane> triangle_planes(const scene_detail::MeshPart& part) {
+  std::vector<TrianglePlane> planes(part.indices.size() / 3);
+  const auto vertex = [&part](uint32_t k) {
+    const float* v = part.vertices.data() + size_t{3} * k;
+    return Eigen::Vector3d(v[0], v[1], v[2]);
+  };
+  for (size_t j = 0; j < planes.size(); ++j) {
+    const uint32_t* corner = part.indices.data() + 3 * j;
+    const Eigen::Vector3d v0 = vertex(corner[0]);
+    const Eigen::Vector3d n = (vertex(corner[1]) - v0).cross(vertex(corner[2]) - v0);
+    planes[j] = {{n.x(), n.y(), n.z()},
+                 {part.vertices[3 * corner[0]], part.vertices[3 * corner[0] + 1], part.vertices[3 * corner[0] + 2]}};
+  }
+  return planes;
+}
+
 }  // namespace
 
 struct Scene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  std::vector<Material> materials;             // glTF materials, then the default one
-  std::vector<unsigned> material_of_geometry;  // geomID → index into materials
-  std::vector<TriangleMesh> meshes;            // geomID → its buffers (Embree owns them)
+  std::vector<Material> materials;                 // glTF materials, then the default one
+  std::vector<unsigned> material_of_geometry;      // geomID → index into materials
+  std::vector<TriangleMesh> meshes;                // geomID → its buffers (Embree owns them) and planes
+  std::vector<std::vector<TrianglePlane>> planes;  // geomID → its triangles' planes
   size_t triangles = 0;
   std::string embree_error;
 
@@ -78,11 +97,14 @@ Scene Scene::load(const std::filesystem::path& path) {
     rtcReleaseGeometry(geometry);  // the scene holds it, and so its buffers
     impl->material_of_geometry.resize(id + 1, default_material);
     impl->meshes.resize(id + 1);
+    impl->planes.resize(id + 1);
+    impl->planes[id] = triangle_planes(part);
     impl->meshes[id] = mesh;
     impl->material_of_geometry[id] = part.material < 0 ? default_material : static_cast<unsigned>(part.material);
     impl->triangles += part.indices.size() / 3;
     part = {};  // Embree holds its own copy now
   }
+  for (size_t id = 0; id < impl->meshes.size(); ++id) impl->meshes[id].planes = impl->planes[id].data();
   rtcCommitScene(impl->scene);
   if (!impl->embree_error.empty()) throw std::runtime_error("Embree: " + impl->embree_error);
   return Scene(std::move(impl));

@@ -37,11 +37,22 @@ struct SceneHit {
   Eigen::Vector3f normal;  // Embree's geometric normal, world frame, not normalized
 };
 
+// Triangle j's plane as the caster measures a hit on it (column_caster.cpp, measure_hits): its
+// first corner, and the cross product of its edges from that corner in double, as
+// (v1 - v0) x (v2 - v0). Made once when the scene loads: read per hit, the corner's three vertices
+// behind an index were two dependent cache misses.
+struct TrianglePlane {
+  double normal[3];
+  float corner[3];
+};
+
 // One geometry's triangles as Embree intersects them, world frame: vertex i is
-// vertices[3i .. 3i+2], triangle j joins vertices indices[3j .. 3j+2]. Valid while the Scene lives.
+// vertices[3i .. 3i+2], triangle j joins vertices indices[3j .. 3j+2], its plane planes[j]. Valid
+// while the Scene lives.
 struct TriangleMesh {
   const float* vertices = nullptr;
   const uint32_t* indices = nullptr;
+  const TrianglePlane* planes = nullptr;
 };
 
 class Scene {
