@@ -179,8 +179,8 @@ TEST(Profile, RangeLimitsEffectAgreesWithTheProfile) {
 // OS1, detection from the signal, whose default threshold is set from the OS1 range specification
 // (E5, [S1]); and what real captures support: E2 fitted, E6 (DUAL second returns); on OS2, whose
 // only real capture is one frame of an OS-2-128, incidence and E2's tails fitted there (and no E2
-// k, which added nothing after them), and E6 with the footprint incidence found. Every effect whose parameters are not the library's defaults
-// says where they came from. The paper profiles stay the paper's law; the detection threshold of
+// k, which added nothing after them), and E6 with the footprint incidence found. Every effect whose parameters are not
+// the library's defaults says where they came from. The paper profiles stay the paper's law; the detection threshold of
 // OS0 and OS2 has no source.
 TEST(Profile, DatasheetProfilesEnableTheEffectsWithSourcedDefaults) {
   for (const auto& name : available_profiles()) {
