@@ -5,8 +5,11 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <string>
 #include <thread>
 #include <vector>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
@@ -45,8 +48,10 @@ VirtualSensorSetup setup_for(const std::string& address, const std::string& seri
   return setup;
 }
 
+// ctest runs this file's tests side by side, each in a process of its own: each writes its own
+// room (a shared path was rewritten and removed under another's Scene::load: "not a readable glTF").
 Scene room_scene() {
-  const auto dir = std::filesystem::temp_directory_path() / "lidartwin_rig_test";
+  const auto dir = std::filesystem::temp_directory_path() / ("lidartwin_rig_test_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   test::write_glb(dir / "room.glb", {test::box("room", {-4, -3, -1.5}, {4, 3, 1.5}, 0.4f)});
   Scene scene = Scene::load(dir / "room.glb");
