@@ -228,13 +228,11 @@ class MapReferences {
     const double cos_incidence = std::abs(normal.dot(d));
     if (cos_incidence < kMaxCosGrazing) return Verdict::kGrazing;
     // Within a frame, a surface across the scan lines is known only from the lines beside the
-    // pixel's own: where they lie more than kMaxRowStepM apart on it (the ground beyond 80 degrees
-    // at 13-20 m), a patch wide enough to hold them spans the ground's unevenness too (on the
-    // yard's ground there: the spread 1.2 times the scene's).
-    // The rows above and below must both have returned: at the frame's top or bottom row, or at a
-    // surface's rim, the patch lies on one side of the pixel and its surface is extrapolated there
-    // (the drive's top beams on structures at 13-20 m: incidence 75 degrees for 35-48, references
-    // 0.2 m off).
+    // pixel's own. Both must have returned: at the frame's top or bottom row, or at a surface's rim,
+    // the patch lies on one side of the pixel and its surface is extrapolated there. And they may lie
+    // at most kMaxRowStepM apart on it: farther (the ground beyond 80 degrees at 13-20 m), a patch
+    // wide enough to hold them spans the ground's unevenness too (on the yard's ground there: the
+    // spread 1.2 times the scene's).
     if (within_frame_) {
       const std::optional<double> step = scan_line_step(own, m, r);
       if (!step) return Verdict::kUnsupported;
