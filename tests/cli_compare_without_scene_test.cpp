@@ -271,6 +271,11 @@ TEST(CompareRealCapture, MapModeOnAMovingOs1128NamesSignalDependentPrecision) {
   fs::remove_all(out);
 }
 
+// A waterfall row's NLL excess in standard errors of what its own model expects.
+double excess_se(const nlohmann::json& row) {
+  return (row["nll_per_pixel"].get<double>() - row["nll_expected"].get<double>()) / row["nll_se"].get<double>();
+}
+
 // The loop on real data, judged on a frame the fit never scored: fit --auto on the sample's first
 // two frames, from the datasheet's profile, then compare that and the fitted one on the third. In
 // map mode every frame still makes reference surfaces, so the held-out frame is judged against the
@@ -298,17 +303,14 @@ TEST(CompareRealCapture, MapModeFitOnTwoFramesLowersTheErrorOnTheThird) {
   EXPECT_GT(report["inputs"]["map"]["compared"].get<size_t>(), 30000u);
   const nlohmann::json& shipped = report["waterfall"][0];
   const nlohmann::json& refit = report["waterfall"][1];
-  const auto excess = [](const nlohmann::json& row) {
-    return (row["nll_per_pixel"].get<double>() - row["nll_expected"].get<double>()) / row["nll_se"].get<double>();
-  };
   // The fitted profile explains the held-out frame better, and nearer to what its own model
   // expects. Not within a few standard errors of it: the frame still fails where neither profile
   // has an effect (incidence 30-60 degrees, 1.3 times the spread), and a fit on two frames of a
   // sensor's own map leaves the spread a little wide elsewhere (-7 standard errors, spread 0.99).
   EXPECT_LT(refit["nll_per_pixel"].get<double>(),
             shipped["nll_per_pixel"].get<double>() - 5.0 * shipped["nll_se"].get<double>());
-  EXPECT_GT(std::abs(excess(shipped)), 5.0);
-  EXPECT_LT(std::abs(excess(refit)), std::abs(excess(shipped))) << refit.dump();
+  EXPECT_GT(std::abs(excess_se(shipped)), 5.0);
+  EXPECT_LT(std::abs(excess_se(refit)), std::abs(excess_se(shipped))) << refit.dump();
   // The per-beam offsets fitted on two frames hold on the third (beam 104 reads 33 mm long).
   bool beams = false;
   for (const auto& effect : profile["effects"]) beams |= effect["name"] == "beam_calibration";
@@ -331,10 +333,6 @@ std::string os2_before_the_fit(const std::string& shipped) {
   const fs::path path = dir / (shipped + "-before.json");
   std::ofstream(path) << profile.dump(2);
   return path.string();
-}
-
-double excess_se(const nlohmann::json& row) {
-  return (row["nll_per_pixel"].get<double>() - row["nll_expected"].get<double>()) / row["nll_se"].get<double>();
 }
 
 // The OS-2-128 sample is one frame: map mode compares it within the frame. Against the placeholder
