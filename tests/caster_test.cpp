@@ -1,9 +1,12 @@
 // BeamGeometry against an independent copy of the SDK's XYZ formula (protocol doc 7.1), the
 // conventions of 7.2, and ColumnCaster on a small known scene.
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <random>
+#include <span>
 #include <vector>
 
 #include <unistd.h>
@@ -208,6 +211,51 @@ TEST(ColumnCaster, EdgePartnersAreTheHitsAcrossTheLargestDepthStep) {
     EXPECT_GE(spacing, altitude - 1e-3) << row;
     EXPECT_LE(spacing, std::hypot(altitude, azimuth) + 1e-3) << row;
   }
+}
+
+// find_edge_partners chooses for all rows at once with SIMD selects; choose_edge_partner is the
+// rule written out. On columns of surfaces at random ranges, incidences and holes (and a column
+// shorter than a vector multiple), both choose the same partner, bit for bit.
+TEST(ColumnCaster, EdgePartnersOfAColumnAreChooseEdgePartnersRowByRow) {
+  const BeamGeometry geometry(sample_beams(), 1024);
+  std::mt19937 random(5);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const auto random_column = [&](size_t rows) {
+    std::vector<IdealReturn> column(rows);
+    float range = 1.0f + 40.0f * unit(random);
+    for (auto& pixel : column) {
+      const float u = unit(random);
+      if (u < 0.1f) range = 1.0f + 40.0f * unit(random);  // a depth step
+      pixel.range_m = u > 0.93f ? 0.0f : range * (1.0f + 0.03f * (unit(random) - 0.5f));
+      pixel.cos_incidence = unit(random) < 0.1f ? 0.01f : unit(random);
+      pixel.reflectivity = unit(random);
+    }
+    return column;
+  };
+  int partners = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const size_t rows = trial % 5 == 0 ? 37 : 128;
+    const std::vector<IdealReturn> left = random_column(rows), right = random_column(rows);
+    std::vector<IdealReturn> column = random_column(rows);
+    const std::vector<IdealReturn> before = column;
+    find_edge_partners(column, left, trial % 3 == 0 ? std::span<const IdealReturn>() : right, geometry);
+    for (size_t r = 0; r < rows; ++r) {
+      const int row = static_cast<int>(r);
+      IdealReturn expected = before[r];
+      const std::array<Neighbour, 4> neighbours{{
+          {r > 0 ? &before[r - 1] : nullptr, r > 0 ? geometry.row_spacing_rad(row - 1) : 0.0f},
+          {r + 1 < rows ? &before[r + 1] : nullptr, r + 1 < rows ? geometry.row_spacing_rad(row) : 0.0f},
+          {&left[r], geometry.column_spacing_rad(row)},
+          {trial % 3 == 0 ? nullptr : &right[r], geometry.column_spacing_rad(row)},
+      }};
+      choose_edge_partner(expected, neighbours);
+      ASSERT_EQ(column[r].partner_range_m, expected.partner_range_m) << "trial " << trial << " row " << r;
+      ASSERT_EQ(column[r].partner_reflectance, expected.partner_reflectance) << "trial " << trial << " row " << r;
+      ASSERT_EQ(column[r].partner_spacing_rad, expected.partner_spacing_rad) << "trial " << trial << " row " << r;
+      partners += expected.has_partner();
+    }
+  }
+  EXPECT_GT(partners, 1000) << "the columns have edges to choose partners at";
 }
 
 class ColumnCasterScene : public ::testing::Test {

@@ -212,16 +212,44 @@ void choose_edge_partner(IdealReturn& pixel, std::span<const Neighbour> neighbou
 void find_edge_partners(std::span<IdealReturn> column, std::span<const IdealReturn> left,
                         std::span<const IdealReturn> right, const BeamGeometry& geometry) {
   const size_t rows = column.size();
-  // The neighbours' own fields are read before any partner is written: only partner_* change.
+  if (rows > kMaxRows) throw std::length_error("find_edge_partners: a column has at most 128 rows");
+  static_assert(kMaxRows == caster_detail::kPartnerRows);
+  // choose_edge_partner for every row at once (caster_detail::edge_partners), from the fields it
+  // reads copied out by row; the row above is the column's ranges one place earlier, the row
+  // below one place later, a missing neighbour reads as a miss (range 0) as it does there.
+  constexpr size_t kPad = kMaxRows + 2;
+  alignas(64) float range[kPad] = {}, reflectance[kPad] = {};
+  alignas(64) float cos_incidence[kMaxRows] = {};
+  alignas(64) float side_range[2][kMaxRows] = {}, side_reflectance[2][kMaxRows] = {};
+  alignas(64) float up_spacing[kMaxRows] = {}, down_spacing[kMaxRows] = {}, side_spacing[kMaxRows] = {};
   for (size_t r = 0; r < rows; ++r) {
     const int row = static_cast<int>(r);
-    const std::array<Neighbour, 4> neighbours{{
-        {r > 0 ? &column[r - 1] : nullptr, r > 0 ? geometry.row_spacing_rad(row - 1) : 0.0f},
-        {r + 1 < rows ? &column[r + 1] : nullptr, r + 1 < rows ? geometry.row_spacing_rad(row) : 0.0f},
-        {left.empty() ? nullptr : &left[r], geometry.column_spacing_rad(row)},
-        {right.empty() ? nullptr : &right[r], geometry.column_spacing_rad(row)},
-    }};
-    choose_edge_partner(column[r], neighbours);
+    range[r + 1] = column[r].range_m;
+    reflectance[r + 1] = column[r].reflectivity * column[r].cos_incidence;
+    cos_incidence[r] = column[r].cos_incidence;
+    if (r > 0) up_spacing[r] = geometry.row_spacing_rad(row - 1);
+    if (r + 1 < rows) down_spacing[r] = geometry.row_spacing_rad(row);
+    side_spacing[r] = geometry.column_spacing_rad(row);
+  }
+  const std::span<const IdealReturn> sides[2] = {left, right};
+  for (size_t side = 0; side < 2; ++side) {
+    if (sides[side].empty()) continue;
+    for (size_t r = 0; r < rows; ++r) {
+      side_range[side][r] = sides[side][r].range_m;
+      side_reflectance[side][r] = sides[side][r].reflectivity * sides[side][r].cos_incidence;
+    }
+  }
+  const caster_detail::PartnerCandidates candidates{
+      {range, range + 2, side_range[0], side_range[1]},
+      {reflectance, reflectance + 2, side_reflectance[0], side_reflectance[1]},
+      {up_spacing, down_spacing, side_spacing, side_spacing}};
+  alignas(64) float partner_range[kMaxRows], partner_reflectance[kMaxRows], partner_spacing[kMaxRows];
+  caster_detail::edge_partners(range + 1, cos_incidence, candidates,
+                               {partner_range, partner_reflectance, partner_spacing});
+  for (size_t r = 0; r < rows; ++r) {
+    column[r].partner_range_m = partner_range[r];
+    column[r].partner_reflectance = partner_reflectance[r];
+    column[r].partner_spacing_rad = partner_spacing[r];
   }
 }
 
@@ -245,7 +273,8 @@ void ColumnCaster::cast(std::span<const Column> columns) const {
   }
 }
 
-// Lane sequence: slot s is row cast_row(s / n) of column s % n, n columns in the group. Sixteen
+// Lane sequence: slot s is row cast_row(s / n) of column s % n, n columns in the group (less the
+// rows a column cast beside hits skips). Sixteen
 // neighbouring columns aligned to a strip (the renderer's blocks) cast strip by strip, straight
 // from the geometry; any other group gathers its lanes' rays (fewer columns: several rows each).
 void ColumnCaster::cast_group(std::span<const Column> group) const {
@@ -271,9 +300,39 @@ void ColumnCaster::cast_group(std::span<const Column> group) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one row of neighbouring columns
-  const int slots = n * geometry_.rows();
+  // A column cast beside hits skips the rows where they missed: those slots are not cast.
+  const auto wanted = [&](int c, int k) {
+    const auto& beside = group[static_cast<size_t>(c)].beside_hits;
+    return beside.empty() || beside[static_cast<size_t>(geometry_.cast_row(k))].hit();
+  };
+  int slots = n * geometry_.rows();
+  if (!whole_strip) {
+    slots = 0;
+    for (int c = 0; c < n; ++c) {
+      const Column& column = group[static_cast<size_t>(c)];
+      if (column.beside_hits.empty()) {
+        slots += geometry_.rows();
+        continue;
+      }
+      assert(column.beside_hits.size() == column.out.size());
+      for (size_t row = 0; row < column.out.size(); ++row) {
+        if (column.beside_hits[row].hit()) {
+          ++slots;
+        } else {
+          column.out[row] = kNoReturn;
+          column.out[row].beam = static_cast<uint16_t>(row);
+        }
+      }
+    }
+  }
   std::array<bool, kLanes> retro{};
   int next_column = 0, next_k = 0;  // the next slot's source
+  const auto skip_unwanted = [&] {
+    while (next_k < geometry_.rows() && !wanted(next_column, next_k)) {
+      if (++next_column == n) next_column = 0, ++next_k;
+    }
+  };
+  skip_unwanted();
   for (int first = 0; first < slots; first += kLanes) {
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kLanes];
@@ -298,6 +357,7 @@ void ColumnCaster::cast_group(std::span<const Column> group) const {
           source.column[lane] = static_cast<uint8_t>(next_column);
           source.k[lane] = static_cast<uint16_t>(next_k);
           if (++next_column == n) next_column = 0, ++next_k;
+          skip_unwanted();
         } else {  // past the last slot: repeat the last, masked off
           source.column[lane] = source.column[lane - 1];
           source.k[lane] = source.k[lane - 1];

@@ -77,6 +77,42 @@ void DepthSteps(const float* range, size_t rows, uint8_t* step) {
   for (; r + 1 < rows; ++r) step[r] = static_cast<uint8_t>(DepthStepScalar(range[r], range[r + 1]));
 }
 
+// choose_edge_partner with a select per candidate in place of its branches: the same comparisons
+// on the same IEEE products, quotient and root, so the same partner on every target.
+void EdgePartners(const float* range, const float* cos_incidence, const PartnerCandidates& candidates,
+                  const PartnerChoice& out) {
+  const hn::ScalableTag<float> df;
+  const auto zero = hn::Zero(df), two = hn::Set(df, 2.0f), one = hn::Set(df, 1.0f);
+  const auto least_cos = hn::Set(df, 0.05f), near = hn::Set(df, 0.3f), share = hn::Set(df, 0.05f);
+  for (size_t r = 0; r < kPartnerRows; r += hn::Lanes(df)) {
+    const auto a = hn::LoadU(df, range + r);
+    const auto hit = hn::Gt(a, zero);
+    auto c = hn::LoadU(df, cos_incidence + r);  // std::clamp(c, 0.05, 1)
+    c = hn::IfThenElse(hn::Lt(c, least_cos), least_cos, hn::IfThenElse(hn::Lt(one, c), one, c));
+    const auto slope = hn::Div(hn::Mul(a, hn::Sqrt(hn::Sub(one, hn::Mul(c, c)))), c);
+    const auto twice_slope = hn::Mul(two, slope);
+    auto largest = zero, partner = zero, reflectance = zero, spacing = zero;
+    for (size_t k = 0; k < 4; ++k) {
+      const auto b = hn::LoadU(df, candidates.range[k] + r);
+      const auto gap = hn::LoadU(df, candidates.spacing[k] + r);
+      const auto farther = hn::IfThenElse(hn::Lt(a, b), b, a);
+      const auto scaled = hn::Mul(share, farther);
+      const auto threshold = hn::IfThenElse(hn::Lt(near, scaled), scaled, near);
+      const auto step = hn::Abs(hn::Sub(b, a));
+      const auto take = hn::And(
+          hn::And(hit, hn::Gt(b, zero)),
+          hn::And(hn::Gt(step, threshold), hn::And(hn::Gt(step, hn::Mul(twice_slope, gap)), hn::Gt(step, largest))));
+      largest = hn::IfThenElse(take, step, largest);
+      partner = hn::IfThenElse(take, b, partner);
+      reflectance = hn::IfThenElse(take, hn::LoadU(df, candidates.reflectance[k] + r), reflectance);
+      spacing = hn::IfThenElse(take, gap, spacing);
+    }
+    hn::StoreU(partner, df, out.range + r);
+    hn::StoreU(reflectance, df, out.reflectance + r);
+    hn::StoreU(spacing, df, out.spacing + r);
+  }
+}
+
 }  // namespace lidartwin::caster_detail::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
@@ -86,6 +122,7 @@ namespace lidartwin::caster_detail {
 HWY_EXPORT(TransformLanes);
 HWY_EXPORT(CosIncidenceLanes);
 HWY_EXPORT(DepthSteps);
+HWY_EXPORT(EdgePartners);
 
 void transform_lanes(const LaneRays& in, const float (*rotation)[kLanes], const float (*translation)[kLanes],
                      const LaneRaysOut& out) {
@@ -99,6 +136,11 @@ void cos_incidence_lanes(const float* nx, const float* ny, const float* nz, cons
 
 void depth_steps(const float* range, size_t rows, uint8_t* step) {
   HWY_DYNAMIC_DISPATCH(DepthSteps)(range, rows, step);
+}
+
+void edge_partners(const float* range, const float* cos_incidence, const PartnerCandidates& candidates,
+                   const PartnerChoice& out) {
+  HWY_DYNAMIC_DISPATCH(EdgePartners)(range, cos_incidence, candidates, out);
 }
 
 }  // namespace lidartwin::caster_detail

@@ -32,4 +32,22 @@ void cos_incidence_lanes(const float* nx, const float* ny, const float* nz, cons
 // step apart (|a - b| > max(0.3 m, 5 % of the farther)), else 0; r in [0, rows - 1).
 void depth_steps(const float* range, size_t rows, uint8_t* step);
 
+// E6's edge partners of one column, every row at once (choose_edge_partner's rule and order).
+// Arrays by row, kPartnerRows long (rows beyond the column's hold zeros): the column's range and
+// |cos| incidence, and four candidates in choose_edge_partner's order (the rows above and below,
+// the columns left and right): range (0: none or a miss), rho * cos(theta), angle to the pixel.
+inline constexpr size_t kPartnerRows = 128;  // a multiple of every target's lanes
+struct PartnerCandidates {
+  const float* range[4];
+  const float* reflectance[4];
+  const float* spacing[4];
+};
+struct PartnerChoice {
+  float* range;  // 0: no partner
+  float* reflectance;
+  float* spacing;
+};
+void edge_partners(const float* range, const float* cos_incidence, const PartnerCandidates& candidates,
+                   const PartnerChoice& out);
+
 }  // namespace lidartwin::caster_detail

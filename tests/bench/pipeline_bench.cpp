@@ -40,6 +40,7 @@
 #include "lidartwin/caster/beam_geometry.h"
 #include "lidartwin/caster/column_caster.h"
 #include "lidartwin/effects/effect_chain.h"
+#include "lidartwin/error.h"
 #include "lidartwin/frame/forward_model.h"
 #include "lidartwin/metadata/metadata.h"
 #include "lidartwin/packet/lidar_packet.h"
@@ -263,15 +264,27 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
 // Effect chains on the same sensor, scene and rays, (c) / (a) each, from each pose: none (what
 // the cast, the column bookkeeping and the encoding cost without any effect), the paper's
 // linear law (the chain of profiles/os1-32-paper.json), the OS1-128 datasheet profile's, and every
-// library effect on at once (mixed_pixels casts the columns beside each packet's block as well).
+// library effect on at once (mixed_pixels casts the columns beside each packet's block as well);
+// then the datasheet chain less one effect at a time, what each of its effects costs (an effect
+// that others need, radiometry, stays).
 void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats) {
   const nlohmann::json every = test::every_effect_chain(s.profile.effects[1]);  // the datasheet's piecewise sigma(r)
-  const std::pair<const char*, nlohmann::json> chains[] = {
+  std::vector<std::pair<std::string, nlohmann::json>> chains = {
       {"none (cast, encode: the floor)", nlohmann::json::array()},
       {"paper (os1-32-paper's chain)", load_profile("os1-32-paper").effects},
       {"datasheet (os1-128's chain)", s.profile.effects},
       {"every effect on", every},
   };
+  for (size_t left_out = 0; left_out < s.profile.effects.size(); ++left_out) {
+    nlohmann::json less = s.profile.effects;
+    less.erase(left_out);
+    const std::string name = "datasheet less " + s.profile.effects[left_out].at("name").get<std::string>();
+    try {
+      (void)EffectChain::from_json(less, name);
+      chains.emplace_back(name, less);
+    } catch (const InputError&) {  // a later effect needs it
+    }
+  }
   WorkerPool pool(threads);
   std::printf("\neffect chains, %s: ratio (c) pipeline / raw (a), median of %d\n", scenario.name, repeats);
   std::vector<RTCRay16> rays;
@@ -287,7 +300,7 @@ void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int thre
       const Rate a = raw_packets(s, rays, threads);
       ratios.push_back(pipeline(s, model, frames, threads).pixels.wall_per_s / a.wall_per_s);
     }
-    std::printf("  %-32s %.3f (min %.3f, max %.3f)\n", name, median(ratios),
+    std::printf("  %-38s %.3f (min %.3f, max %.3f)\n", name.c_str(), median(ratios),
                 *std::min_element(ratios.begin(), ratios.end()), *std::max_element(ratios.begin(), ratios.end()));
   }
 }

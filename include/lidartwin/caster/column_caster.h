@@ -24,6 +24,9 @@ class ColumnCaster {
     int measurement_id;
     const Pose* world_from_sensor;
     std::span<IdealReturn> out;
+    // When given (a column already cast, of out's size), only the rows where it hit are cast, and
+    // the others read as misses: E6 needs a column beside a block only where the block's edge hit.
+    std::span<const IdealReturn> beside_hits = {};
   };
   // Casts the columns 16 at a time: a packet holds one row of the 16 (a RayStrip when they are 16
   // neighbours aligned as the geometry stores them, as the renderer's blocks are), which Embree
