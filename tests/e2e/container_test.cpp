@@ -13,6 +13,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <memory>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -67,10 +68,15 @@ double seconds_until_answering(const std::string& address, std::chrono::steady_c
 
 // A client as the SDK 1.0 is one: configures the sensor at `address`, then takes 3 scans of its
 // packets, which must come from that address and be complete.
-void expect_complete_scans_from(const std::string& address, const std::string& mode = "512x10") {
+// A sensor goes on streaming to the ports its client configured after the client is done, as a
+// real one does. Each client's ports therefore stay bound in `held` until the test ends: a port
+// freed and handed by the kernel to the next sensor's client would receive both streams.
+using HeldPorts = std::vector<std::unique_ptr<UdpSocket>>;
+
+void expect_complete_scans_from(const std::string& address, HeldPorts& held, const std::string& mode = "512x10") {
   SCOPED_TRACE("sensor " + address);
-  UdpSocket lidar;
-  UdpSocket imu;
+  UdpSocket& lidar = *held.emplace_back(std::make_unique<UdpSocket>());
+  UdpSocket& imu = *held.emplace_back(std::make_unique<UdpSocket>());
   SensorHttp http(address, 80);
   ConfigRequest request;
   request.lidar_port = lidar.port();
@@ -111,7 +117,8 @@ TEST_F(Container, TheImageIsHealthyAndStreamsCompleteScansToAClientOnTheHost) {
 
   EXPECT_EQ(sh(kPodman + "healthcheck run " + name).first, 0) << "the image's HEALTHCHECK";
   EXPECT_EQ(trimmed(sh(kPodman + "exec " + name + " id -u").second), "10001") << "the sensor runs without root";
-  expect_complete_scans_from(address);
+  HeldPorts held;
+  expect_complete_scans_from(address, held);
 }
 
 // docker-compose (Debian's 1.29) driving podman through its Docker-compatible API, on a socket of
@@ -227,7 +234,8 @@ TEST_F(Container, TheComposeRigsSensorsEachAnswerAtTheirOwnAddressAndStream) {
   const std::vector<Expected> sensors{
       {"172.28.0.11", "OS-1-64"}, {"172.28.0.12", "OS-0-32-U1"}, {"172.28.0.13", "OS-2-128"}};
   expect_each_its_own_sensor(sensors);
-  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address);
+  HeldPorts held;
+  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address, held);
   if (HasFailure()) std::printf("%s\n", compose("logs").second.c_str());
   ASSERT_EQ(compose("down -t 2").first, 0);
 
@@ -235,7 +243,7 @@ TEST_F(Container, TheComposeRigsSensorsEachAnswerAtTheirOwnAddressAndStream) {
   ASSERT_EQ(one_code, 0) << one_output;
   const std::vector<Expected> rig{{"127.0.0.2", "OS-1-128"}, {"127.0.0.3", "OS-0-32-U1"}, {"127.0.0.4", "OS-0-32-U1"}};
   expect_each_its_own_sensor(rig);
-  for (const Expected& sensor : rig) expect_complete_scans_from(sensor.address);
+  for (const Expected& sensor : rig) expect_complete_scans_from(sensor.address, held);
   if (HasFailure()) std::printf("%s\n", compose("--profile one-process logs").second.c_str());
 }
 
@@ -250,7 +258,8 @@ TEST_F(Container, TheKubernetesPodsSensorsEachStreamFollowingOneMulticastPoseStr
   // a live pose's few milliseconds ahead: their first second has late packets (logged). Clients
   // come once it has passed.
   std::this_thread::sleep_for(std::chrono::seconds(2));
-  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address);
+  HeldPorts held;
+  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address, held);
   if (HasFailure()) {
     for (const char* container : {"roof", "left", "right"}) {
       std::printf("%s\n", sh(kPodman + "logs lidartwin-rig-" + container).second.c_str());
@@ -264,7 +273,8 @@ TEST_F(Container, TheKubernetesDeploymentServesTheExampleRigFromOneProcess) {
   const std::vector<Expected> sensors{
       {"127.0.0.2", "OS-1-128"}, {"127.0.0.3", "OS-0-32-U1"}, {"127.0.0.4", "OS-0-32-U1"}};
   expect_each_its_own_sensor(sensors);
-  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address);
+  HeldPorts held;
+  for (const Expected& sensor : sensors) expect_complete_scans_from(sensor.address, held);
 }
 
 }  // namespace
