@@ -108,11 +108,14 @@ void refit_own_effects(Search& s, Diagnosis& d) {
   }
 }
 
-// Every candidate of the pool fitted given the chain, best first. The first round's are ranked
-// with their intervals; later rounds' only compete (the one kept gets its intervals then).
+// The first round's candidates are ranked with their intervals (the report lists them all); later
+// rounds' only compete, and the one kept gets its intervals then.
+Intervals ranked_with(const Search& s) { return s.round == 1 ? Intervals::kWith : Intervals::kWithout; }
+
+// Every candidate of the pool fitted given the chain, best first (with intervals: ranked_with).
 std::vector<Candidate> fit_candidates(const Search& s, const std::vector<const CandidateSpec*>& pool) {
   std::vector<Candidate> fits;
-  const Intervals intervals = s.round == 1 ? Intervals::kWith : Intervals::kWithout;
+  const Intervals intervals = ranked_with(s);
   for (const CandidateSpec* spec : pool) {
     s.say(fmt::format("round {}: fitting {}, {} of {}", s.round, spec->effect, fits.size() + 1, pool.size()));
     fits.push_back(fit(s.table, s.rows, Placement{s.chain, {}}, s.nll, *spec, nullptr, intervals));
@@ -311,7 +314,9 @@ std::vector<Step> search_steps(Search& s, Diagnosis& d) {
         d.not_selected.push_back(std::move(*n));
         break;
       }
-      if (s.round > 1) add_intervals(s.table, s.rows, Placement{s.chain, {}}, step.spec, step.candidate);
+      if (ranked_with(s) == Intervals::kWithout) {
+        add_intervals(s.table, s.rows, Placement{s.chain, {}}, step.spec, step.candidate);
+      }
       d.selected.push_back(step.candidate);
     }
     last = Kept{fits, step, s.chain, s.nll};

@@ -499,9 +499,11 @@ Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, 
   opt.set_xtol_rel(1e-4);
   opt.set_ftol_abs(1e-3);
   opt.set_maxeval(std::max(150, 60 * static_cast<int>(x.size())));  // BOBYQA needs more with more parameters (knots)
+  // NLopt passes its data as a void*: the address of a pointer to the (const) problem.
+  const FitProblem* objective = &problem;
   opt.set_min_objective([](const std::vector<double>& v, std::vector<double>&,
-                           void* d) { return (*static_cast<const FitProblem*>(d))(v); },
-                        const_cast<FitProblem*>(&problem));
+                           void* d) { return (**static_cast<const FitProblem* const*>(d))(v); },
+                        &objective);
   double best = base_nll;
   // BOBYQA stops where its quadratic model says it is done, which from a start far off can be short
   // of the optimum (a halo's rate stopped at 0.42 from a start of 0.1, 26 nats worse than 0.51),

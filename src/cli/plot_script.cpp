@@ -2,7 +2,7 @@
 
 #include <cstdlib>
 
-#include "cli/serve_inputs.h"
+#include "lidartwin/profile/sensor_profile.h"
 
 namespace lidartwin::cli {
 

@@ -15,11 +15,6 @@ constexpr const char* kDefaultScene = "scenes/plant.glb";
 constexpr const char* kDefaultTrajectory = "scenes/plant_inspection.tum";
 }  // namespace
 
-std::filesystem::path source_dir() {
-  if (const char* env = std::getenv("LIDARTWIN_SOURCE_DIR"); env && *env) return env;
-  return LIDARTWIN_SOURCE_DIR;
-}
-
 std::filesystem::path find_input(const std::string& flag, const std::string& value) {
   const std::filesystem::path given(value);
   if (std::filesystem::is_regular_file(given)) return given;

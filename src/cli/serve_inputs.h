@@ -55,8 +55,6 @@ struct ServeFlags {
   std::string rig;                  // --rig FILE: the sensors of a rig (docs/rig.md)
 };
 
-// $LIDARTWIN_SOURCE_DIR, else the source tree this binary was built from.
-std::filesystem::path source_dir();
 // An existing file for a flag: as given (relative to the working directory), else relative to the
 // source tree. Throws InputError naming the flag, the value and where it looked.
 std::filesystem::path find_input(const std::string& flag, const std::string& value);

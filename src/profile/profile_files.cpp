@@ -33,16 +33,16 @@ nlohmann::json read_json(const std::filesystem::path& path) {
 
 }  // namespace
 
-// $LIDARTWIN_PROFILES, else profiles/ of $LIDARTWIN_SOURCE_DIR (where scenes and rigs are found
-// too, e.g. an installed copy), else of the source tree this binary was built from.
+std::filesystem::path source_dir() {
+  if (const char* source = std::getenv("LIDARTWIN_SOURCE_DIR"); source != nullptr && *source != '\0') return source;
+  return LIDARTWIN_SOURCE_DIR;
+}
+
 std::filesystem::path profiles_dir() {
   if (const char* overridden = std::getenv("LIDARTWIN_PROFILES"); overridden != nullptr && *overridden != '\0') {
     return overridden;
   }
-  if (const char* source = std::getenv("LIDARTWIN_SOURCE_DIR"); source != nullptr && *source != '\0') {
-    return std::filesystem::path(source) / "profiles";
-  }
-  return std::filesystem::path(LIDARTWIN_SOURCE_DIR) / "profiles";
+  return source_dir() / "profiles";
 }
 
 std::vector<std::string> available_profiles() {

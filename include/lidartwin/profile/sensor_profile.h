@@ -46,8 +46,10 @@ SensorProfile load_profile(std::string_view name_or_path);
 // The file load_profile reads for a name or path (throws InputError like it for a missing name).
 std::filesystem::path profile_file(std::string_view name_or_path);
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source);
-std::filesystem::path
-profiles_dir();  // $LIDARTWIN_PROFILES, else $LIDARTWIN_SOURCE_DIR/profiles, else <source>/profiles
+// Where the shipped data lives (profiles, scenes, rigs, tools): $LIDARTWIN_SOURCE_DIR (an installed
+// copy, a container's), else the source tree this binary was built from.
+std::filesystem::path source_dir();
+std::filesystem::path profiles_dir();  // $LIDARTWIN_PROFILES, else source_dir()/profiles
 std::vector<std::string> available_profiles();
 // The datasheet's range-noise table (Table I) of a product line's family ("OS-1-32" -> OS-1): the
 // range_noise_piecewise effect of the first available profile of that family that has one (the
