@@ -65,7 +65,8 @@ class SimdTargets : public ::testing::TestWithParam<Case> {
     info.prod_sn = "992200000001";
     info.initialization_id = 7;
     const EffectChain chain = EffectChain::from_json(
-        c.every_effect ? test::every_effect_chain(profile.effects[1]) : profile.effects, "test chain");
+        c.every_effect ? test::every_effect_chain(test::range_noise_of(profile.effects)) : profile.effects,
+        "test chain");
     const Scene scene = Scene::load(kSource / "scenes/plant.glb");
     const TrajectoryPoses poses(Trajectory::load_tum(kSource / "scenes/plant_inspection.tum"));
     const Recording recording{.scene = scene,

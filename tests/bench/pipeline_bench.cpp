@@ -268,7 +268,7 @@ void run_scenario(const Setup& s, const Scenario& scenario, int frames, int thre
 // then the datasheet chain less one effect at a time, what each of its effects costs (an effect
 // that others need, radiometry, stays).
 void chain_ratios(const Setup& s, const Scenario& scenario, int frames, int threads, int repeats) {
-  const nlohmann::json every = test::every_effect_chain(s.profile.effects[1]);  // the datasheet's piecewise sigma(r)
+  const nlohmann::json every = test::every_effect_chain(test::range_noise_of(s.profile.effects));
   std::vector<std::pair<std::string, nlohmann::json>> chains = {
       {"none (cast, encode: the floor)", nlohmann::json::array()},
       {"paper (os1-32-paper's chain)", load_profile("os1-32-paper").effects},

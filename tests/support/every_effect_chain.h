@@ -1,9 +1,21 @@
 #pragma once
 // Every library effect on at once, with values that make each one act: what pipeline_bench prices
 // and what the determinism test records. `range_noise` is the chain's sigma(r) effect.
+#include <stdexcept>
+#include <string>
+
 #include <nlohmann/json.hpp>
 
 namespace lidartwin::test {
+
+// A profile chain's sigma(r) effect (range_noise_piecewise or range_noise_linear), by name: its
+// place moves as effects are added before it (effects[1] was mixed_pixels once E6 came second).
+inline nlohmann::json range_noise_of(const nlohmann::json& effects) {
+  for (const auto& effect : effects) {
+    if (effect.at("name").get<std::string>().starts_with("range_noise")) return effect;
+  }
+  throw std::invalid_argument("the profile's chain has no range_noise effect");
+}
 
 inline nlohmann::json every_effect_chain(const nlohmann::json& range_noise) {
   return nlohmann::json::array({
