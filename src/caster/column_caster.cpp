@@ -274,9 +274,9 @@ void ColumnCaster::cast(std::span<const Column> columns) const {
 }
 
 // Lane sequence: slot s is row cast_row(s / n) of column s % n, n columns in the group (less the
-// rows a column cast beside hits skips). Sixteen
-// neighbouring columns aligned to a strip (the renderer's blocks) cast strip by strip, straight
-// from the geometry; any other group gathers its lanes' rays (fewer columns: several rows each).
+// rows a column cast beside hits skips). Sixteen neighbouring columns aligned to a strip (the
+// renderer's blocks) cast strip by strip, straight from the geometry; any other group gathers its
+// lanes' rays (fewer columns: several rows each).
 void ColumnCaster::cast_group(std::span<const Column> group) const {
   const int n = static_cast<int>(group.size());
   assert(n >= 1 && n <= kLanes);
