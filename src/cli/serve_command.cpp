@@ -104,6 +104,10 @@ VirtualSensorSetup sensor_setup(const ServeFlags& flags, const SensorChoice& sen
   setup.streamer.source_address = address;
   setup.streamer.record_dir = flags.record_dir;
   setup.streamer.spin_us = flags.spin_us;
+  setup.streamer.coalesce_us = flags.coalesce_us;
+  setup.streamer.contention = flags.contention == "always"  ? StreamerOptions::Contention::kAlways
+                              : flags.contention == "never" ? StreamerOptions::Contention::kNever
+                                                            : StreamerOptions::Contention::kAuto;
   setup.streamer.render_nice = render_nice;
   setup.max_range_m = profile.max_range_m;
   SensorPhysics physics = sensor_physics(profile, flags.ideal);
@@ -274,6 +278,16 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
                   "wake this early and spin to each packet's deadline while the host's CPUs are not contended "
                   "(0 = sleep only)")
       ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  sub->add_option("--coalesce-us", flags->coalesce_us,
+                  "while the host's CPUs are contended, send the packets due within this long of each other "
+                  "together, the earlier ones held back (0 = one wake-up per packet)")
+      ->check(CLI::Range(0, 10000))
+      ->capture_default_str();
+  sub->add_option("--contention", flags->contention,
+                  "whether the host's CPUs count as contended (no --spin-us, --coalesce-us on): auto follows "
+                  "/proc/pressure/cpu; always, never")
+      ->check(CLI::IsMember({"auto", "always", "never"}))
       ->capture_default_str();
   sub->add_option("--trajectory-end", flags->trajectory_end,
                   "what the trajectory's end means: hold (the last pose), loop, stop (streaming); default: loop "

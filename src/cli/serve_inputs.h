@@ -39,6 +39,8 @@ struct ServeFlags {
   std::string state_file;
   int threads = 0;
   int spin_us = 100;
+  int coalesce_us = 2000;
+  std::string contention = "auto";  // always, never: whether the host counts as contended
   std::string log_level = "info";
   // Live poses (docs/live-poses.md).
   bool live_poses = false;  // poses arrive over HTTP (and UDP with pose_udp)

@@ -41,8 +41,10 @@ bool host_contended() {
         "instead of spinning to it",
         pressure);
   } else {
-    spdlog::info("streamer: the host's CPUs are free again (pressure {:.0f} %): send clocks spin to each deadline",
-                 pressure);
+    spdlog::info(
+        "streamer: the host's CPUs are free again (pressure {:.0f} %): send clocks spin to each packet's "
+        "deadline, one wake-up a packet",
+        pressure);
   }
   return !was;
 }

@@ -106,8 +106,28 @@ int64_t StreamSession::lidar_deadline_ns() const {
 
 // The timer fires spin_ns early, and the handler spins to the exact deadline: waking a sleeping
 // thread costs tens of microseconds on a virtual machine, more than item 12's pacing should drift.
+// Coalesced (a contended host: StreamerOptions::coalesce_us), it wakes at the last deadline within
+// the window after the next one and sends every packet then due: a packet is held back for a later
+// one's wake-up, never sent before its time (a real sensor never is; a late one looks like a
+// network's delay), and its columns get that much longer to be cast.
 void StreamSession::arm_lidar() {
-  lidar_timer_.expires_at(steady_time(lidar_deadline_ns() - (options_.spin_ns ? *options_.spin_ns : 0)));
+  int64_t wake_ns = lidar_deadline_ns();
+  if (const int64_t window = coalesce_ns(); window > 0) {
+    const int64_t latest = wake_ns + window;
+    uint64_t frame = frame_;
+    size_t index = packet_index_;
+    for (;;) {
+      if (++index == packets_per_frame_) {
+        if (timing_.clock.column_pose_time_s(frame + 1, 0) >= stream_end_pose_s()) break;  // the stream's end
+        ++frame;
+        index = 0;
+      }
+      const int64_t deadline = timing_.steady_ns(model_->packet_timestamp_ns(frame, index) - timing_.clock.origin_ns);
+      if (deadline > latest) break;
+      wake_ns = deadline;
+    }
+  }
+  lidar_timer_.expires_at(steady_time(wake_ns - (options_.spin_ns ? *options_.spin_ns : 0)));
   lidar_timer_.async_wait([self = shared_from_this()](const asio::error_code& error) {
     if (!error && !self->stopped_) self->on_lidar_deadline();
   });
@@ -120,7 +140,8 @@ void StreamSession::on_lidar_deadline() {
     now = steady_now_ns();
   }
   skip_overdue_lidar(now);
-  // Normally exactly one packet is due; after a short delay, every packet whose time has come.
+  // Normally exactly one packet is due (coalesced, a few); after a short delay, every packet whose
+  // time has come.
   while (lidar_deadline_ns() <= now) {
     if (lidar_ended()) {
       note_end();
@@ -130,7 +151,19 @@ void StreamSession::on_lidar_deadline() {
     advance_lidar();
     now = steady_now_ns();
   }
+  send_due_imu(now);
   arm_lidar();
+}
+
+int64_t StreamSession::coalesce_ns() const { return options_.coalesce_ns ? *options_.coalesce_ns : 0; }
+
+// Coalesced, the IMU samples due by a lidar wake-up go with it (100 Hz against 320 wake-ups a
+// second at 1024x10), and the IMU's own clock waits a window longer in case none comes: while the
+// lidar streams, the IMU then wakes nobody.
+void StreamSession::send_due_imu(int64_t now_ns) {
+  if (!options_.send_imu || coalesce_ns() <= 0 || imu_ended() || imu_deadline_ns() > now_ns) return;
+  while (!imu_ended() && imu_deadline_ns() <= now_ns) send_imu_packet();
+  arm_imu();  // for the next sample: the pending wait is for one just sent
 }
 
 void StreamSession::send_lidar_packet(int64_t now_ns) {
@@ -149,7 +182,7 @@ void StreamSession::send_lidar_packet(int64_t now_ns) {
   }
   if (link_.send_lidar(bytes, frame_, packet_index_, model_->packet_columns()[packet_index_],
                        config_->udp_port_lidar)) {
-    counters_.record_lidar_send(now_ns - lidar_deadline_ns());
+    counters_.record_lidar_send(now_ns - lidar_deadline_ns(), coalesce_ns());
     // A blank (stalled) packet was cast with no pose, and its slot may be mid-render: only a packet
     // the worker published reports the poses it carries.
     if (!ready) return;
@@ -180,10 +213,11 @@ int64_t StreamSession::imu_deadline_ns() const {
 }
 
 void StreamSession::arm_imu() {
-  const int64_t deadline = imu_deadline_ns();
-  imu_timer_.expires_at(steady_time(deadline));
-  imu_timer_.async_wait([self = shared_from_this()](const asio::error_code& error) {
-    if (!error && !self->stopped_) self->on_imu_deadline();
+  const int64_t held_ns = packets_per_frame_ > 0 && !lidar_ended() ? coalesce_ns() : 0;  // send_due_imu()
+  imu_timer_.expires_at(steady_time(imu_deadline_ns() + held_ns));                       // cancels a pending wait
+  imu_timer_.async_wait([self = shared_from_this(), arming = ++imu_arming_](const asio::error_code& error) {
+    // An earlier arming's handler can be queued already when send_due_imu() re-arms.
+    if (!error && !self->stopped_ && arming == self->imu_arming_) self->on_imu_deadline();
   });
 }
 

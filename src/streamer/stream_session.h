@@ -46,6 +46,9 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
     // Wake this much before a lidar deadline, then spin to it. The streamer's, which it changes
     // with the host's load (it outlives the session); null: never spin.
     const int64_t* spin_ns = nullptr;
+    // Wake for the packets due within this much together, the earlier ones held back, and send
+    // the IMU samples due with them (StreamerOptions::coalesce_us). The streamer's; null: never.
+    const int64_t* coalesce_ns = nullptr;
     int64_t cast_ahead_ns = 0;      // > 0: cast each packet only this long before it is due
     PoseNews* pose_news = nullptr;  // with cast_ahead_ns: says when a pose arrived (outlives the session)
     bool withhold_unposed = false;  // do not send packets none of whose columns had a pose
@@ -77,6 +80,8 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   void send_lidar_packet(int64_t now_ns);
   void advance_lidar();
   void skip_overdue_lidar(int64_t now_ns);
+  int64_t coalesce_ns() const;
+  void send_due_imu(int64_t now_ns);
   int64_t imu_deadline_ns() const;
   void arm_imu();
   void on_imu_deadline();
@@ -102,6 +107,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   uint64_t frame_ = 0;
   size_t packet_index_ = 0;
   uint64_t imu_index_ = 0;
+  uint64_t imu_arming_ = 0;  // counts arm_imu(): a handler of an earlier arming finds it stale
   bool stopped_ = false;
   bool end_noted_ = false;
 };

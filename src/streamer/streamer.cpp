@@ -81,6 +81,7 @@ Streamer::Streamer(asio::io_context& io, ModelFactory make_model, StreamerOption
       spin_ns_(int64_t{options_.spin_us} * 1000),
       pose_news_(std::make_unique<streamer_detail::PoseNews>()),
       jobs_(std::make_unique<streamer_detail::BackgroundJobs>(options_.render_nice)) {
+  if (options_.contention != StreamerOptions::Contention::kAuto) follow_host_load();  // from the first packet
   arm_stats_timer();
 }
 
@@ -222,6 +223,7 @@ std::shared_ptr<streamer_detail::StreamSession> Streamer::build_session(
   session_options.frames_ahead = options_.frames_ahead;
   session_options.render_nice = options_.render_nice;
   session_options.spin_ns = &spin_ns_;
+  if (options_.cast_ahead_ms <= 0.0) session_options.coalesce_ns = &coalesce_ns_;
   session_options.cast_ahead_ns = static_cast<int64_t>(options_.cast_ahead_ms * 1e6);
   session_options.pose_news = pose_news_.get();
   session_options.withhold_unposed = options_.withhold_unposed;

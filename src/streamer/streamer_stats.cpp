@@ -48,9 +48,28 @@ void Streamer::report_stats() {
   if (std::unique_lock lock(snapshot_mutex_, std::try_to_lock); lock) snapshot_ = stats;
 }
 
-// The send clock spins to each deadline only while the host has CPU to spare (host_load.h).
+// The send clock spins to each deadline only while the host has CPU to spare. While it has not,
+// and casting has fallen behind (a render stall since the last look), the send clock coalesces
+// its wake-ups, trading up to coalesce_us of punctuality for the CPU casting lacks, until the host
+// is free again (a rig of 16 on a contended host that keeps up stays punctual).
 void Streamer::follow_host_load() {
-  if (options_.spin_us > 0) spin_ns_ = streamer_detail::host_contended() ? 0 : int64_t{options_.spin_us} * 1000;
+  using Contention = StreamerOptions::Contention;
+  const uint64_t stalls = counters_->stats.render_stalls;
+  const bool stalled = stalls > stalls_at_last_look_;
+  stalls_at_last_look_ = stalls;
+  if (options_.contention == Contention::kAuto && options_.spin_us <= 0 && options_.coalesce_us <= 0) return;
+  const bool contended = options_.contention == Contention::kAuto ? streamer_detail::host_contended()
+                                                                  : options_.contention == Contention::kAlways;
+  spin_ns_ = contended ? 0 : int64_t{options_.spin_us} * 1000;
+  const bool coalesce = contended && (coalesce_ns_ > 0 || stalled || options_.contention == Contention::kAlways);
+  const int64_t window = coalesce ? int64_t{options_.coalesce_us} * 1000 : 0;
+  if (window > 0 && coalesce_ns_ == 0) {
+    spdlog::info(
+        "streamer{}: casting fell behind on a contended host: the send clock wakes once for the packets due within "
+        "{} us of each other (--coalesce-us), holding the earlier ones back",
+        tag_, options_.coalesce_us);
+  }
+  coalesce_ns_ = window;
 }
 
 void Streamer::warn_if_behind(double render_load) {

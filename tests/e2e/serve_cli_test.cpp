@@ -58,7 +58,8 @@ INSTANTIATE_TEST_SUITE_P(
                       BadFlag{"--trajectory /no/such.tum", "--trajectory"},  // excluded by the --pose of room_args
                       BadFlag{"--threads -3", "--threads"}, BadFlag{"--no-such-flag", "--no-such-flag"},
                       BadFlag{"--serial-number 12ab", "--serial-number"},
-                      BadFlag{"--serial-number 1234567890123", "--serial-number"}));
+                      BadFlag{"--serial-number 1234567890123", "--serial-number"},
+                      BadFlag{"--coalesce-us -5", "--coalesce-us"}, BadFlag{"--contention sometimes", "--contention"}));
 
 // A rig's sensors in containers all bind 0.0.0.0, so the address cannot tell their serials apart:
 // --serial-number sets the one the metadata reports and every packet carries (4.3).

@@ -57,6 +57,18 @@ struct StreamerOptions {
   // spins only while the host's CPUs are not contended (streamer/host_load.h): on a full host the
   // spin would be taken from rendering, its own or other daemons'.
   int spin_us = 100;
+  // While the host is contended and casting has fallen behind, the send clock wakes once for the
+  // packets due within this much of each other, holding the earlier ones back (never sending one
+  // before its time), and sends the IMU samples due by then with them: one wake-up serves two
+  // packets of a 1024x10 stream, and a wake-up costs ~100 us of CPU on a VM (the issue-26 cliff:
+  // a dozen daemons' send clocks took the CPU their casting needed). 0: one wake-up per packet
+  // always. Not with cast_ahead_ms, whose packets wait for the freshest pose.
+  int coalesce_us = 2000;
+  // Whether the host counts as contended (no spin, coalesced sends): kAuto follows the host's CPU
+  // pressure (streamer/host_load.h); a user who knows better (a CPU quota PSI does not show, a
+  // test) says so.
+  enum class Contention { kAuto, kAlways, kNever };
+  Contention contention = Contention::kAuto;
   // Live poses (docs/live-poses.md): > 0 casts each packet first this long before it is due, and
   // again if a pose arrives before it is due (frames_ahead still bounds the buffers); 0 casts as
   // far ahead as it can.
@@ -143,7 +155,9 @@ class Streamer {
   std::unique_ptr<streamer_detail::StreamCounters> counters_;
   std::unique_ptr<streamer_detail::GroundTruth> ground_truth_;  // with record_dir
   asio::steady_timer stats_timer_;
-  int64_t spin_ns_;  // options_.spin_us, or 0 while the host is contended; io thread
+  int64_t spin_ns_;          // options_.spin_us, or 0 while the host is contended; io thread
+  int64_t coalesce_ns_ = 0;  // options_.coalesce_us while coalescing (follow_host_load), else 0; io thread
+  uint64_t stalls_at_last_look_ = 0;
   mutable std::mutex snapshot_mutex_;
   StreamStats snapshot_;                                     // guarded by snapshot_mutex_
   std::shared_ptr<const StreamConfig> config_;               // the one being streamed
