@@ -57,20 +57,26 @@ float DepthStepScalar(float a, float b) {
   return (hit_a != hit_b) || (hit_a && hit_b && std::abs(a - b) > threshold) ? 1.0f : 0.0f;
 }
 
+// The depth-step rule of DepthStepScalar and choose_edge_partner, for returns a and b that both
+// hit: apart by more than 0.3 m or 5 % of the farther.
+template <class D, class V>
+HWY_INLINE auto HitsApart(D df, V a, V b) {
+  const auto scaled = hn::Mul(hn::Set(df, 0.05f), hn::IfThenElse(hn::Lt(a, b), b, a));
+  const auto near = hn::Set(df, 0.3f);
+  return hn::Gt(hn::Abs(hn::Sub(a, b)), hn::IfThenElse(hn::Lt(near, scaled), scaled, near));
+}
+
 void DepthSteps(const float* range, size_t rows, uint8_t* step) {
   const hn::ScalableTag<float> df;
   const hn::Rebind<int32_t, decltype(df)> di;
   const hn::Rebind<uint8_t, decltype(df)> du8;
   const size_t lanes = hn::Lanes(df);
-  const auto zero = hn::Zero(df), near = hn::Set(df, 0.3f), share = hn::Set(df, 0.05f);
+  const auto zero = hn::Zero(df);
   size_t r = 0;
   for (; rows > 0 && r + lanes <= rows - 1; r += lanes) {
     const auto a = hn::LoadU(df, range + r), b = hn::LoadU(df, range + r + 1);
     const auto hit_a = hn::Gt(a, zero), hit_b = hn::Gt(b, zero);
-    const auto scaled = hn::Mul(share, hn::IfThenElse(hn::Lt(a, b), b, a));
-    const auto threshold = hn::IfThenElse(hn::Lt(near, scaled), scaled, near);
-    const auto apart = hn::Gt(hn::Abs(hn::Sub(a, b)), threshold);
-    const auto edge = hn::Or(hn::Xor(hit_a, hit_b), hn::And(hn::And(hit_a, hit_b), apart));
+    const auto edge = hn::Or(hn::Xor(hit_a, hit_b), hn::And(hn::And(hit_a, hit_b), HitsApart(df, a, b)));
     const auto ones = hn::IfThenElseZero(hn::RebindMask(di, edge), hn::Set(di, 1));
     hn::StoreU(hn::DemoteTo(du8, ones), du8, step + r);
   }
@@ -83,7 +89,7 @@ void EdgePartners(const float* range, const float* cos_incidence, const PartnerC
                   const PartnerChoice& out) {
   const hn::ScalableTag<float> df;
   const auto zero = hn::Zero(df), two = hn::Set(df, 2.0f), one = hn::Set(df, 1.0f);
-  const auto least_cos = hn::Set(df, 0.05f), near = hn::Set(df, 0.3f), share = hn::Set(df, 0.05f);
+  const auto least_cos = hn::Set(df, 0.05f);
   for (size_t r = 0; r < kPartnerRows; r += hn::Lanes(df)) {
     const auto a = hn::LoadU(df, range + r);
     const auto hit = hn::Gt(a, zero);
@@ -95,13 +101,10 @@ void EdgePartners(const float* range, const float* cos_incidence, const PartnerC
     for (size_t k = 0; k < 4; ++k) {
       const auto b = hn::LoadU(df, candidates.range[k] + r);
       const auto gap = hn::LoadU(df, candidates.spacing[k] + r);
-      const auto farther = hn::IfThenElse(hn::Lt(a, b), b, a);
-      const auto scaled = hn::Mul(share, farther);
-      const auto threshold = hn::IfThenElse(hn::Lt(near, scaled), scaled, near);
       const auto step = hn::Abs(hn::Sub(b, a));
       const auto take = hn::And(
           hn::And(hit, hn::Gt(b, zero)),
-          hn::And(hn::Gt(step, threshold), hn::And(hn::Gt(step, hn::Mul(twice_slope, gap)), hn::Gt(step, largest))));
+          hn::And(HitsApart(df, a, b), hn::And(hn::Gt(step, hn::Mul(twice_slope, gap)), hn::Gt(step, largest))));
       largest = hn::IfThenElse(take, step, largest);
       partner = hn::IfThenElse(take, b, partner);
       reflectance = hn::IfThenElse(take, hn::LoadU(df, candidates.reflectance[k] + r), reflectance);
