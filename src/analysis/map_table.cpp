@@ -26,8 +26,14 @@ using analysis_detail::BeamProjector;
 using analysis_detail::FramePoints;
 
 constexpr size_t kMinPoints = 12;
-constexpr size_t kQuadricPoints = 24;              // from this many points the surface may curve
-constexpr double kMinPatchM = 0.15;                // half-width of the patch at short range
+constexpr size_t kQuadricPoints = 24;  // from this many points the surface may curve
+constexpr double kMinPatchM = 0.15;    // half-width of the patch at short range
+// The patch's window in pixels either side, at most; a window that wide (returns within about a
+// metre, where kMinPatchM spans dozens of pixels) is gathered at every other pixel: its points lie
+// millimetres apart, thousands of them (a plant drive's returns under 1 m took half of map mode's
+// time), and a quarter of them determines the surface as well.
+constexpr int kMaxPatchRows = 24;
+constexpr int kMaxPatchColumns = 48;
 constexpr double kMaxCosGrazing = 0.0871557;       // cos 85 degrees
 constexpr double kMinNormalAgreement = 0.9063078;  // cos 25 degrees
 constexpr double kMaxRowStepM = 1.0;               // within a frame: its scan lines' spacing on a surface
@@ -178,8 +184,9 @@ class MapReferences {
     int rows = 1, columns = 1;
     for (int grow = 0;; ++grow) {
       half = base * static_cast<double>(1 << grow);
-      rows = std::clamp(static_cast<int>(std::ceil(half / (centre * projector_.row_spacing_rad()))), 1, 24);
-      columns = std::clamp(static_cast<int>(std::ceil(half / (centre * projector_.column_spacing_rad()))), 1, 48);
+      rows = std::clamp(static_cast<int>(std::ceil(half / (centre * projector_.row_spacing_rad()))), 1, kMaxPatchRows);
+      columns = std::clamp(static_cast<int>(std::ceil(half / (centre * projector_.column_spacing_rad()))), 1,
+                           kMaxPatchColumns);
       const size_t frames_used = gather(k, i, x, 1.5 * half, rows, columns, points);
       // One frame's returns are sparser than several frames': the patch grows until it holds enough
       // points for a quadric (a plane through a curved surface's points lies behind its bulge at the
@@ -490,13 +497,14 @@ class MapReferences {
     const size_t reach = within_frame_ ? 0 : static_cast<size_t>(neighbour_frames_);
     const size_t first = k >= reach ? k - reach : 0;
     const size_t last = std::min(frames_.size() - 1, k + reach);
+    const int stride = rows >= kMaxPatchRows || columns >= kMaxPatchColumns ? 2 : 1;
     for (size_t j = first; j <= last; ++j) {
       if (j == k && !within_frame_) continue;
       const FramePoints& other = frames_[j];
       const BeamProjector::Pixel seed = projector_.project_world(other, x);
       const size_t before = points.size();
-      for (int dm = -columns; dm <= columns; ++dm) {
-        for (int dr = -rows; dr <= rows; ++dr) {
+      for (int dm = -columns; dm <= columns; dm += stride) {
+        for (int dr = -rows; dr <= rows; dr += stride) {
           const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
           if (!near) continue;
           const size_t t = other.index(near->m, near->r);
