@@ -100,9 +100,11 @@ void StreamSession::release() {
 }
 
 // The packet's timestamp (its last column's) on the steady clock.
-int64_t StreamSession::lidar_deadline_ns() const {
-  return timing_.steady_ns(model_->packet_timestamp_ns(frame_, packet_index_) - timing_.clock.origin_ns);
+int64_t StreamSession::deadline_ns(uint64_t frame, size_t index) const {
+  return timing_.steady_ns(model_->packet_timestamp_ns(frame, index) - timing_.clock.origin_ns);
 }
+
+int64_t StreamSession::lidar_deadline_ns() const { return deadline_ns(frame_, packet_index_); }
 
 // The timer fires spin_ns early, and the handler spins to the exact deadline: waking a sleeping
 // thread costs tens of microseconds on a virtual machine, more than item 12's pacing should drift.
@@ -118,11 +120,11 @@ void StreamSession::arm_lidar() {
     size_t index = packet_index_;
     for (;;) {
       if (++index == packets_per_frame_) {
-        if (timing_.clock.column_pose_time_s(frame + 1, 0) >= stream_end_pose_s()) break;  // the stream's end
+        if (frame_past_end(frame + 1)) break;
         ++frame;
         index = 0;
       }
-      const int64_t deadline = timing_.steady_ns(model_->packet_timestamp_ns(frame, index) - timing_.clock.origin_ns);
+      const int64_t deadline = deadline_ns(frame, index);
       if (deadline > latest) break;
       wake_ns = deadline;
     }
@@ -254,7 +256,11 @@ double StreamSession::stream_end_pose_s() const {
   return clock.pose_origin_s + frames / clock.fps;
 }
 
-bool StreamSession::lidar_ended() const { return timing_.clock.column_pose_time_s(frame_, 0) >= stream_end_pose_s(); }
+bool StreamSession::frame_past_end(uint64_t frame) const {
+  return timing_.clock.column_pose_time_s(frame, 0) >= stream_end_pose_s();
+}
+
+bool StreamSession::lidar_ended() const { return frame_past_end(frame_); }
 
 bool StreamSession::imu_ended() const { return timing_.clock.imu_pose_time_s(imu_index_) >= stream_end_pose_s(); }
 

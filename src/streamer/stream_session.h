@@ -74,6 +74,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   uint64_t take_recasts() { return render_ ? render_->take_recasts() : 0; }
 
  private:
+  int64_t deadline_ns(uint64_t frame, size_t index) const;
   int64_t lidar_deadline_ns() const;
   void arm_lidar();
   void on_lidar_deadline();
@@ -86,6 +87,7 @@ class StreamSession : public std::enable_shared_from_this<StreamSession> {
   void arm_imu();
   void on_imu_deadline();
   void send_imu_packet();
+  bool frame_past_end(uint64_t frame) const;  // starts at or after the motion's end
   bool lidar_ended() const;
   bool imu_ended() const;
   double stream_end_pose_s() const;

@@ -65,9 +65,9 @@ void Streamer::follow_host_load() {
   const int64_t window = coalesce ? int64_t{options_.coalesce_us} * 1000 : 0;
   if (window > 0 && coalesce_ns_ == 0) {
     spdlog::info(
-        "streamer{}: casting fell behind on a contended host: the send clock wakes once for the packets due within "
-        "{} us of each other (--coalesce-us), holding the earlier ones back",
-        tag_, options_.coalesce_us);
+        "streamer{}: {}: the send clock wakes once for the packets due within {} us of each other (--coalesce-us), "
+        "holding the earlier ones back",
+        tag_, stalled ? "casting fell behind on a contended host" : "--contention always", options_.coalesce_us);
   }
   coalesce_ns_ = window;
 }
