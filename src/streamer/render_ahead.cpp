@@ -110,7 +110,7 @@ void RenderAhead::run() {
 }
 
 int64_t RenderAhead::deadline_ns(uint64_t frame, size_t index) const {
-  return timing_.steady_ns(model_.packet_timestamp_ns(frame, index) - timing_.clock.origin_ns);
+  return timing_.steady_ns_of_timestamp(model_.packet_timestamp_ns(frame, index));
 }
 
 // The first packet of [begin, end) that can still be cast before it is due, one packet's casting

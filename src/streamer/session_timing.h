@@ -20,6 +20,8 @@ struct SessionTiming {
 
   // The steady-clock instant of a time given relative to the sensor clock's origin.
   int64_t steady_ns(uint64_t since_origin_ns) const { return start_steady_ns + static_cast<int64_t>(since_origin_ns); }
+  // The steady-clock instant of a sensor timestamp (a packet's deadline is its last column's).
+  int64_t steady_ns_of_timestamp(uint64_t timestamp_ns) const { return steady_ns(timestamp_ns - clock.origin_ns); }
 };
 
 }  // namespace lidartwin::streamer_detail

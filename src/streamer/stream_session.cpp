@@ -54,7 +54,7 @@ void StreamSession::start() {
   const int64_t now = steady_now_ns();
   if (packets_per_frame_ > 0) {
     const uint64_t first = frame_;
-    while (timing_.steady_ns(timing_.clock.column_timestamp_ns(frame_, 0) - timing_.clock.origin_ns) < now) ++frame_;
+    while (timing_.steady_ns_of_timestamp(timing_.clock.column_timestamp_ns(frame_, 0)) < now) ++frame_;
     if (frame_ > first) {
       render_->finished(frame_ - 1);
       spdlog::info("streamer: the session was ready {} frames late (a busy host): it starts with frame {}",
@@ -101,7 +101,7 @@ void StreamSession::release() {
 
 // The packet's timestamp (its last column's) on the steady clock.
 int64_t StreamSession::deadline_ns(uint64_t frame, size_t index) const {
-  return timing_.steady_ns(model_->packet_timestamp_ns(frame, index) - timing_.clock.origin_ns);
+  return timing_.steady_ns_of_timestamp(model_->packet_timestamp_ns(frame, index));
 }
 
 int64_t StreamSession::lidar_deadline_ns() const { return deadline_ns(frame_, packet_index_); }
@@ -211,7 +211,7 @@ void StreamSession::skip_overdue_lidar(int64_t now_ns) {
 }
 
 int64_t StreamSession::imu_deadline_ns() const {
-  return timing_.steady_ns(timing_.clock.imu_timestamp_ns(imu_index_) - timing_.clock.origin_ns);
+  return timing_.steady_ns_of_timestamp(timing_.clock.imu_timestamp_ns(imu_index_));
 }
 
 void StreamSession::arm_imu() {
