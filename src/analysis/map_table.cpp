@@ -127,12 +127,6 @@ struct Surface {
   }
 };
 
-// How a gather steps through its window, in rows and columns; 0: every other pixel in a window at
-// its widest (kMaxPatchRows or kMaxPatchColumns), else every pixel.
-struct Strides {
-  int rows = 0, columns = 0;
-};
-
 class MapReferences {
  public:
   MapReferences(const std::vector<FramePoints>& frames, const BeamProjector& projector, int neighbour_frames,
@@ -508,25 +502,25 @@ class MapReferences {
 
   // The points of frames k - n .. k + n but k within `radius` of x, from a window of rows x columns
   // around where x falls in each; returns how many frames gave some. Within a frame: frame k's own
-  // points but pixel `own` (its index in frame k).
+  // points but pixel `own` (its index in frame k). The window is stepped through `stride` pixels at
+  // a time; by default every other one where it is at its widest (kMaxPatchRows or
+  // kMaxPatchColumns), else every one.
   size_t gather(size_t k, size_t own, const Eigen::Vector3f& x, double radius, int rows, int columns, Patch& points,
-                Strides strides = {}) const {
+                int stride = 0) const {
     const auto radius2 = static_cast<float>(radius * radius);
     points.clear();
     size_t frames_used = 0;
     const size_t reach = within_frame_ ? 0 : static_cast<size_t>(neighbour_frames_);
     const size_t first = k >= reach ? k - reach : 0;
     const size_t last = std::min(frames_.size() - 1, k + reach);
-    const int widest = rows >= kMaxPatchRows || columns >= kMaxPatchColumns ? 2 : 1;
-    const int row_stride = strides.rows > 0 ? strides.rows : widest;
-    const int column_stride = strides.columns > 0 ? strides.columns : widest;
+    if (stride <= 0) stride = rows >= kMaxPatchRows || columns >= kMaxPatchColumns ? 2 : 1;
     for (size_t j = first; j <= last; ++j) {
       if (j == k && !within_frame_) continue;
       const FramePoints& other = frames_[j];
       const BeamProjector::Pixel seed = projector_.project_world(other, x);
       const size_t before = points.size();
-      for (int dm = -columns; dm <= columns; dm += column_stride) {
-        for (int dr = -rows; dr <= rows; dr += row_stride) {
+      for (int dm = -columns; dm <= columns; dm += stride) {
+        for (int dr = -rows; dr <= rows; dr += stride) {
           const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
           if (!near) continue;
           const size_t t = other.index(near->m, near->r);
@@ -589,9 +583,8 @@ class MapReferences {
     }
     strip_rows = std::min(strip_rows, kMaxPatchRows);
     strip_columns = std::min(strip_columns, kMaxPatchColumns);
-    gather(k, f.index(m, r), world(crossing).cast<float>(), radius, strip_rows, strip_columns, points, {1, 1});
+    gather(k, f.index(m, r), world(crossing).cast<float>(), radius, strip_rows, strip_columns, points, 1);
     if (!select_by_beams(points, plane, crossing, radius)) return std::nullopt;
-    plane.terms = 3;
     double rss = 0.0;
     if (!gauss_newton(plane, 3, rss, kStripSteps)) return std::nullopt;
     const Eigen::Vector3d normal = Eigen::Vector3d(-plane.c(1), -plane.c(2), 1.0).normalized();
