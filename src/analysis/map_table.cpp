@@ -99,10 +99,18 @@ struct Surface {
     b << 1.0, u, v, u * u, u * v, v * v;
     return b;
   }
+  // c . basis(u, v), the terms written out: built as a vector on the stack and read back, the basis
+  // cost a store-forwarding stall per point (the same products, summed in the same order).
   double height(double u, double v) const {
-    const Eigen::Matrix<double, 6, 1> b = basis(u, v);
     double sum = 0.0;
-    for (int k = 0; k < terms; ++k) sum += c(k) * b(k);
+    sum += c(0) * 1.0;
+    sum += c(1) * u;
+    sum += c(2) * v;
+    if (terms == 6) {
+      sum += c(3) * (u * u);
+      sum += c(4) * (u * v);
+      sum += c(5) * (v * v);
+    }
     return sum;
   }
   Eigen::Vector2d slope(double u, double v) const {
@@ -354,15 +362,50 @@ class MapReferences {
     return true;
   }
 
-  // m += w b b^T over the first p terms, in the lower triangle only: the normal equations' LDLT reads
-  // no more (symmetric() fills the rest where the whole matrix is needed). Each element is the
-  // same product as in the full outer product, so the fits keep their bits, at a sixth (p = 3) or
-  // under two thirds (p = 6) of the multiplies: the references' fits are most of map mode's time.
-  static void add_outer_lower(Eigen::Matrix<double, 6, 6>& m, const Eigen::Matrix<double, 6, 1>& b, int p,
-                              double w = 1.0) {
-    for (int j = 0; j < p; ++j) {
-      for (int i = j; i < p; ++i) m(i, j) += w * (b(i) * b(j));
+  // The sums of a least-squares fit in the first P basis terms, point by point: of b b^T (or w b b^T)
+  // in the lower triangle only, which the normal equations' LDLT reads (symmetric() fills the rest
+  // where the whole matrix is needed), and of b z. Each element is the same product as in the full
+  // outer product, so the fits keep their bits, at a sixth (P = 3) or under two thirds (P = 6) of
+  // the multiplies: the references' fits are most of map mode's time. Kept in locals with P known
+  // at compile time, the sums stay in registers; a 6x6 matrix updated in memory for every point
+  // waited on its own stores.
+  template <int P>
+  struct NormalSums {
+    std::array<double, P*(P + 1) / 2> lower{};
+    std::array<double, P> rhs{};
+    void add(const Eigen::Matrix<double, 6, 1>& b, double z) {
+      size_t k = 0;
+      for (int j = 0; j < P; ++j) {
+        for (int i = j; i < P; ++i) lower[k++] += b(i) * b(j);
+      }
+      for (int i = 0; i < P; ++i) rhs[static_cast<size_t>(i)] += b(i) * z;
     }
+    void add_weighted(const Eigen::Matrix<double, 6, 1>& b, double w) {
+      size_t k = 0;
+      for (int j = 0; j < P; ++j) {
+        for (int i = j; i < P; ++i) lower[k++] += w * (b(i) * b(j));
+      }
+    }
+    Eigen::Matrix<double, 6, 6> matrix() const {
+      Eigen::Matrix<double, 6, 6> m = Eigen::Matrix<double, 6, 6>::Zero();
+      size_t k = 0;
+      for (int j = 0; j < P; ++j) {
+        for (int i = j; i < P; ++i) m(i, j) = lower[k++];
+      }
+      return m;
+    }
+    Eigen::Matrix<double, 6, 1> right() const {
+      Eigen::Matrix<double, 6, 1> r = Eigen::Matrix<double, 6, 1>::Zero();
+      for (int i = 0; i < P; ++i) r(i) = rhs[static_cast<size_t>(i)];
+      return r;
+    }
+  };
+  // The height fit's normal equations of the points (surface frame) in P terms.
+  template <int P>
+  static bool fit_heights(const std::vector<Eigen::Vector3d>& local, Surface& s) {
+    NormalSums<P> sums;
+    for (const auto& q : local) sums.add(Surface::basis(q.x(), q.y()), q.z());
+    return solve_normal_equations<P>(sums.matrix(), sums.right(), s.c);
   }
   static void symmetric(Eigen::Matrix<double, 6, 6>& m) { m.triangularView<Eigen::StrictlyUpper>() = m.transpose(); }
 
@@ -372,8 +415,19 @@ class MapReferences {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& p : points) mean += p;
     mean /= n;
-    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-    for (const auto& p : points) covariance += (p - mean) * (p - mean).transpose();
+    // The six sums in locals (an outer product added to a matrix in memory stalled on its stores).
+    double xx = 0.0, xy = 0.0, xz = 0.0, yy = 0.0, yz = 0.0, zz = 0.0;
+    for (const auto& p : points) {
+      const Eigen::Vector3d d = p - mean;
+      xx += d.x() * d.x();
+      xy += d.y() * d.x();
+      xz += d.z() * d.x();
+      yy += d.y() * d.y();
+      yz += d.z() * d.y();
+      zz += d.z() * d.z();
+    }
+    Eigen::Matrix3d covariance;
+    covariance << xx, xy, xz, xy, yy, yz, xz, yz, zz;
     covariance /= n;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
     const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
@@ -384,8 +438,6 @@ class MapReferences {
     s.e_u = eigen.eigenvectors().col(2);
     s.e_v = s.e_w.cross(s.e_u);
     s.terms = points.size() >= kQuadricPoints ? 6 : 3;
-    Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
     // Scratch kept by each worker thread: this runs once per pixel, a few hundred thousand times.
     thread_local std::vector<Eigen::Vector3d> local;
     thread_local std::vector<double> deviations;
@@ -394,13 +446,8 @@ class MapReferences {
     for (const auto& p : points) {
       const Eigen::Vector3d q = p - mean;
       local.emplace_back(s.e_u.dot(q), s.e_v.dot(q), s.e_w.dot(q));
-      const Eigen::Matrix<double, 6, 1> b = Surface::basis(local.back().x(), local.back().y());
-      add_outer_lower(normal, b, s.terms);
-      rhs += b * local.back().z();
     }
-    if (s.terms == 6 ? !solve_normal_equations<6>(normal, rhs, s.c) : !solve_normal_equations<3>(normal, rhs, s.c)) {
-      return Fit::kNotOneSurface;
-    }
+    if (s.terms == 6 ? !fit_heights<6>(local, s) : !fit_heights<3>(local, s)) return Fit::kNotOneSurface;
     double rss = 0.0;
     for (const auto& q : local) {
       const double e = q.z() - s.height(q.x(), q.y());
@@ -459,17 +506,20 @@ class MapReferences {
   // 1.04 of the scene's: the converged fit leans towards the sensor, as the patch's own does by
   // less than its scatter, for a reason not yet found).
   static bool gauss_newton(Surface& s, int p, double& rss, int steps = 0) {
+    return p == 6 ? gauss_newton<6>(s, rss, steps) : gauss_newton<3>(s, rss, steps);
+  }
+  template <int P>
+  static bool gauss_newton(Surface& s, double& rss, int steps) {
     const size_t n = local_.size();
-    if (n <= static_cast<size_t>(p) + 2) return false;
-    s.terms = p;
+    if (n <= static_cast<size_t>(P) + 2) return false;
+    s.terms = P;
     thread_local std::vector<Eigen::Matrix<double, 6, 1>> gradients;
     thread_local std::vector<double> residuals;
     gradients.resize(n);
     residuals.resize(n);
     Eigen::Matrix<double, 6, 6> inverse;
     for (int iteration = 0;; ++iteration) {
-      Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
-      Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+      NormalSums<P> sums;
       rss = 0.0;
       for (size_t j = 0; j < n; ++j) {
         const Eigen::Vector3d& q = local_[j];
@@ -480,22 +530,19 @@ class MapReferences {
         rss += residuals[j] * residuals[j];
         // d residual / d c: the basis where the point's beam meets the surface, over per_metre.
         gradients[j] = Surface::basis(q.x() - residuals[j] * d.x(), q.y() - residuals[j] * d.y()) / per_metre;
-        add_outer_lower(normal, gradients[j], p);
-        rhs += gradients[j] * residuals[j];
+        sums.add(gradients[j], residuals[j]);
       }
       Eigen::Matrix<double, 6, 1> step;
-      if (p == 6 ? !solve_normal_equations<6>(normal, rhs, step, &inverse)
-                 : !solve_normal_equations<3>(normal, rhs, step, &inverse)) {
-        return false;
-      }
+      if (!solve_normal_equations<P>(sums.matrix(), sums.right(), step, &inverse)) return false;
       if (iteration == 3) break;  // three steps from the height fit: converged to well below its error
       s.c += step;
       if (iteration + 1 == steps) return s.c.allFinite();
     }
-    Eigen::Matrix<double, 6, 6> meat = Eigen::Matrix<double, 6, 6>::Zero();
-    for (size_t j = 0; j < n; ++j) add_outer_lower(meat, gradients[j], p, residuals[j] * residuals[j]);
+    NormalSums<P> meat_sums;
+    for (size_t j = 0; j < n; ++j) meat_sums.add_weighted(gradients[j], residuals[j] * residuals[j]);
+    Eigen::Matrix<double, 6, 6> meat = meat_sums.matrix();
     symmetric(meat);
-    const double dof = static_cast<double>(n) / static_cast<double>(n - static_cast<size_t>(p));
+    const double dof = static_cast<double>(n) / static_cast<double>(n - static_cast<size_t>(P));
     s.covariance = dof * inverse * meat * inverse;
     return s.covariance.allFinite() && s.c.allFinite();
   }
