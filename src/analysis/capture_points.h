@@ -74,6 +74,12 @@ class BeamProjector {
     if (mm < 0) mm += width_;
     return Pixel{mm, rr};
   }
+  // The measurement id beside(m, r, 0, rr - r) gives, less m, before its wrap into [0, width): what
+  // a window of rows beside row r adds to its columns (gather: the modulo once a pixel cost more
+  // than the rest of its test).
+  int row_shift(int r, int rr) const { return shift_[static_cast<size_t>(r)] - shift_[static_cast<size_t>(rr)]; }
+  int width() const { return width_; }
+  int height() const { return height_; }
   // Angular spacing of neighbouring rows (mean) and columns, radians.
   double row_spacing_rad() const { return row_spacing_; }
   double column_spacing_rad() const { return column_spacing_; }
