@@ -373,6 +373,16 @@ class MapReferences {
   struct NormalSums {
     std::array<double, P*(P + 1) / 2> lower{};
     std::array<double, P> rhs{};
+    // The height fit's terms at (u, v), the basis built in locals (as an Eigen vector it went through
+    // the stack, stored a double at a time and read back in pairs: a store-forwarding stall each).
+    void add_at(double u, double v, double z) {
+      const std::array<double, 6> b = {1.0, u, v, u * u, u * v, v * v};
+      size_t k = 0;
+      for (int j = 0; j < P; ++j) {
+        for (int i = j; i < P; ++i) lower[k++] += b[static_cast<size_t>(i)] * b[static_cast<size_t>(j)];
+      }
+      for (int i = 0; i < P; ++i) rhs[static_cast<size_t>(i)] += b[static_cast<size_t>(i)] * z;
+    }
     void add(const Eigen::Matrix<double, 6, 1>& b, double z) {
       size_t k = 0;
       for (int j = 0; j < P; ++j) {
@@ -404,7 +414,7 @@ class MapReferences {
   template <int P>
   static bool fit_heights(const std::vector<Eigen::Vector3d>& local, Surface& s) {
     NormalSums<P> sums;
-    for (const auto& q : local) sums.add(Surface::basis(q.x(), q.y()), q.z());
+    for (const auto& q : local) sums.add_at(q.x(), q.y(), q.z());
     return solve_normal_equations<P>(sums.matrix(), sums.right(), s.c);
   }
   static void symmetric(Eigen::Matrix<double, 6, 6>& m) { m.triangularView<Eigen::StrictlyUpper>() = m.transpose(); }
