@@ -85,6 +85,21 @@ bool beside_step(const FramePoints& f, const BeamProjector& projector, int m, in
   return up > 0.0f && down > 0.0f && step(0.5f * (up + down), range);
 }
 
+// Two doubles in one vector register (GCC's and Clang's vector extension: SSE2, NEON): the fits'
+// terms are built and summed in pairs. Each lane's arithmetic is the scalar's.
+using Pair = double __attribute__((vector_size(16)));
+
+// A surface's six basis terms (Surface::basis) in three pairs.
+struct Terms {
+  Pair pair[3];
+  static Terms basis(double u, double v) { return {{Pair{1.0, u}, Pair{v, u * u}, Pair{u * v, v * v}}}; }
+  Terms over(double scale) const {
+    const Pair s = {scale, scale};
+    return {{pair[0] / s, pair[1] / s, pair[2] / s}};
+  }
+  double operator[](int i) const { return pair[i / 2][i % 2]; }
+};
+
 // The surface through points, in the frame of their principal axes: w = c . basis(u, v), a plane
 // or, with enough points, a quadric (curved tanks and pipes are no planes at a patch's scale).
 struct Surface {
@@ -363,50 +378,42 @@ class MapReferences {
   }
 
   // The sums of a least-squares fit in the first P basis terms, point by point: of b b^T (or w b b^T)
-  // in the lower triangle only, which the normal equations' LDLT reads (symmetric() fills the rest
-  // where the whole matrix is needed), and of b z. Each element is the same product as in the full
-  // outer product, so the fits keep their bits, at a sixth (P = 3) or under two thirds (P = 6) of
-  // the multiplies: the references' fits are most of map mode's time. Kept in locals with P known
-  // at compile time, the sums stay in registers; a 6x6 matrix updated in memory for every point
-  // waited on its own stores.
+  // and of b z, in pairs of lanes (Terms) held in registers with P known at compile time. The
+  // normal equations' LDLT reads the lower triangle (symmetric() fills the rest where the whole
+  // matrix is needed). Each element is the same product, summed in the same order, as in the outer
+  // product, so the fits keep their bits; a 6x6 matrix updated in memory for every point, or a
+  // basis built a double at a time and read back in pairs, stalled on store forwarding at every
+  // point (most of map mode's time).
   template <int P>
   struct NormalSums {
-    std::array<double, P*(P + 1) / 2> lower{};
-    std::array<double, P> rhs{};
-    // The height fit's terms at (u, v), the basis built in locals (as an Eigen vector it went through
-    // the stack, stored a double at a time and read back in pairs: a store-forwarding stall each).
-    void add_at(double u, double v, double z) {
-      const std::array<double, 6> b = {1.0, u, v, u * u, u * v, v * v};
-      size_t k = 0;
+    static constexpr int kPairs = (P + 1) / 2;
+    Pair sums[P][kPairs] = {};  // [j][q]: column j's rows 2q and 2q + 1
+    Pair rhs[kPairs] = {};
+    void add(const Terms& b, double z) {
       for (int j = 0; j < P; ++j) {
-        for (int i = j; i < P; ++i) lower[k++] += b[static_cast<size_t>(i)] * b[static_cast<size_t>(j)];
+        const Pair bj = {b[j], b[j]};
+        for (int q = 0; q < kPairs; ++q) sums[j][q] += b.pair[q] * bj;
       }
-      for (int i = 0; i < P; ++i) rhs[static_cast<size_t>(i)] += b[static_cast<size_t>(i)] * z;
+      const Pair zz = {z, z};
+      for (int q = 0; q < kPairs; ++q) rhs[q] += b.pair[q] * zz;
     }
-    void add(const Eigen::Matrix<double, 6, 1>& b, double z) {
-      size_t k = 0;
+    void add_weighted(const Terms& b, double w) {
+      const Pair ww = {w, w};
       for (int j = 0; j < P; ++j) {
-        for (int i = j; i < P; ++i) lower[k++] += b(i) * b(j);
-      }
-      for (int i = 0; i < P; ++i) rhs[static_cast<size_t>(i)] += b(i) * z;
-    }
-    void add_weighted(const Eigen::Matrix<double, 6, 1>& b, double w) {
-      size_t k = 0;
-      for (int j = 0; j < P; ++j) {
-        for (int i = j; i < P; ++i) lower[k++] += w * (b(i) * b(j));
+        const Pair bj = {b[j], b[j]};
+        for (int q = 0; q < kPairs; ++q) sums[j][q] += ww * (b.pair[q] * bj);
       }
     }
     Eigen::Matrix<double, 6, 6> matrix() const {
       Eigen::Matrix<double, 6, 6> m = Eigen::Matrix<double, 6, 6>::Zero();
-      size_t k = 0;
       for (int j = 0; j < P; ++j) {
-        for (int i = j; i < P; ++i) m(i, j) = lower[k++];
+        for (int i = j; i < P; ++i) m(i, j) = sums[j][i / 2][i % 2];
       }
       return m;
     }
     Eigen::Matrix<double, 6, 1> right() const {
       Eigen::Matrix<double, 6, 1> r = Eigen::Matrix<double, 6, 1>::Zero();
-      for (int i = 0; i < P; ++i) r(i) = rhs[static_cast<size_t>(i)];
+      for (int i = 0; i < P; ++i) r(i) = rhs[i / 2][i % 2];
       return r;
     }
   };
@@ -414,7 +421,7 @@ class MapReferences {
   template <int P>
   static bool fit_heights(const std::vector<Eigen::Vector3d>& local, Surface& s) {
     NormalSums<P> sums;
-    for (const auto& q : local) sums.add_at(q.x(), q.y(), q.z());
+    for (const auto& q : local) sums.add(Terms::basis(q.x(), q.y()), q.z());
     return solve_normal_equations<P>(sums.matrix(), sums.right(), s.c);
   }
   static void symmetric(Eigen::Matrix<double, 6, 6>& m) { m.triangularView<Eigen::StrictlyUpper>() = m.transpose(); }
@@ -523,7 +530,7 @@ class MapReferences {
     const size_t n = local_.size();
     if (n <= static_cast<size_t>(P) + 2) return false;
     s.terms = P;
-    thread_local std::vector<Eigen::Matrix<double, 6, 1>> gradients;
+    thread_local std::vector<Terms> gradients;
     thread_local std::vector<double> residuals;
     gradients.resize(n);
     residuals.resize(n);
@@ -539,7 +546,7 @@ class MapReferences {
         residuals[j] = (q.z() - s.height(q.x(), q.y())) / per_metre;  // metres along the beam
         rss += residuals[j] * residuals[j];
         // d residual / d c: the basis where the point's beam meets the surface, over per_metre.
-        gradients[j] = Surface::basis(q.x() - residuals[j] * d.x(), q.y() - residuals[j] * d.y()) / per_metre;
+        gradients[j] = Terms::basis(q.x() - residuals[j] * d.x(), q.y() - residuals[j] * d.y()).over(per_metre);
         sums.add(gradients[j], residuals[j]);
       }
       Eigen::Matrix<double, 6, 1> step;
