@@ -16,8 +16,15 @@ constexpr double kPi = std::numbers::pi;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // a - b wrapped into [-pi, pi).
+// a - b wrapped into [-pi, pi). For angles within [-pi, pi] (atan2's) the fmod is one subtraction
+// or none: exact (Sterbenz) as fmod is, and the projection runs for every point of every frame.
 double angle_difference(double a, double b) {
-  double d = std::fmod(a - b + std::numbers::pi, kTwoPi);
+  double d = a - b + std::numbers::pi;
+  if (d >= kTwoPi && d < 2.0 * kTwoPi) {
+    d -= kTwoPi;
+  } else if (!(d > -kTwoPi && d < kTwoPi)) {
+    d = std::fmod(d, kTwoPi);
+  }
   if (d < 0.0) d += kTwoPi;
   return d - std::numbers::pi;
 }
@@ -129,8 +136,10 @@ BeamProjector::Pixel BeamProjector::from_angles(double azimuth, double elevation
   }
   const int r = rows_by_elevation_[static_cast<size_t>(it - sorted_elevation_.begin())];
   const double steps = angle_difference(azimuth, azimuth0_[static_cast<size_t>(r)]) / step_;
-  int m = static_cast<int>(std::lround(steps)) % width_;
-  if (m < 0) m += width_;
+  // Within half a turn of measurement id 0: a wrap by a subtraction, not a division.
+  int m = static_cast<int>(std::lround(steps));
+  while (m >= width_) m -= width_;
+  while (m < 0) m += width_;
   return {m, r};
 }
 
