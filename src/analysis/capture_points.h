@@ -70,16 +70,13 @@ class BeamProjector {
   std::optional<Pixel> beside(int m, int r, int dm, int dr) const {
     const int rr = r + dr;
     if (rr < 0 || rr >= height_) return std::nullopt;
-    int mm = (m + shift_[static_cast<size_t>(r)] - shift_[static_cast<size_t>(rr)] + dm) % width_;
-    if (mm < 0) mm += width_;
+    // Wrapped by subtraction: windows reach a few dozen columns, and a modulo per pixel cost more
+    // than the rest of a gather's test (map mode, registration).
+    int mm = m + shift_[static_cast<size_t>(r)] - shift_[static_cast<size_t>(rr)] + dm;
+    while (mm >= width_) mm -= width_;
+    while (mm < 0) mm += width_;
     return Pixel{mm, rr};
   }
-  // The measurement id beside(m, r, 0, rr - r) gives, less m, before its wrap into [0, width): what
-  // a window of rows beside row r adds to its columns (gather: the modulo once a pixel cost more
-  // than the rest of its test).
-  int row_shift(int r, int rr) const { return shift_[static_cast<size_t>(r)] - shift_[static_cast<size_t>(rr)]; }
-  int width() const { return width_; }
-  int height() const { return height_; }
   // Angular spacing of neighbouring rows (mean) and columns, radians.
   double row_spacing_rad() const { return row_spacing_; }
   double column_spacing_rad() const { return column_spacing_; }

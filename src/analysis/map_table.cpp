@@ -578,30 +578,20 @@ class MapReferences {
     const size_t first = k >= reach ? k - reach : 0;
     const size_t last = std::min(frames_.size() - 1, k + reach);
     if (stride <= 0) stride = rows >= kMaxPatchRows || columns >= kMaxPatchColumns ? 2 : 1;
-    // The window's rows within the frame, each with the column beside the seed's (beside()), in the
-    // order beside() visits them: columns outer, rows inner.
-    thread_local std::vector<std::pair<int, int>> window;  // (row, its column at dm = 0, unwrapped)
-    const int width = projector_.width();
     for (size_t j = first; j <= last; ++j) {
       if (j == k && !within_frame_) continue;
       const FramePoints& other = frames_[j];
       const BeamProjector::Pixel seed = projector_.project_world(other, x);
-      window.clear();
-      for (int dr = -rows; dr <= rows; dr += stride) {
-        const int rr = seed.r + dr;
-        if (rr >= 0 && rr < projector_.height()) window.emplace_back(rr, seed.m + projector_.row_shift(seed.r, rr));
-      }
       const size_t before = points.size();
       for (int dm = -columns; dm <= columns; dm += stride) {
-        for (const auto& [rr, column] : window) {
-          int mm = column + dm;
-          while (mm >= width) mm -= width;
-          while (mm < 0) mm += width;
-          const size_t t = other.index(mm, rr);
+        for (int dr = -rows; dr <= rows; dr += stride) {
+          const std::optional<BeamProjector::Pixel> near = projector_.beside(seed.m, seed.r, dm, dr);
+          if (!near) continue;
+          const size_t t = other.index(near->m, near->r);
           if ((j == k && t == own) || !other.returned(t) || (other.world[t] - x).squaredNorm() > radius2) continue;
           points.points.push_back(other.world[t].cast<double>());
           points.beams.push_back(
-              (other.rotation[static_cast<size_t>(mm)] * projector_.direction(mm, rr)).cast<double>());
+              (other.rotation[static_cast<size_t>(near->m)] * projector_.direction(near->m, near->r)).cast<double>());
         }
       }
       frames_used += points.size() > before;
