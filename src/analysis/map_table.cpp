@@ -535,20 +535,28 @@ class MapReferences {
     gradients.resize(n);
     residuals.resize(n);
     Eigen::Matrix<double, 6, 6> inverse;
+    // Plain pointers and a local sum: through the thread-local vectors and `rss` by reference, every
+    // point reloaded their addresses and waited on the sum's store.
+    const Eigen::Vector3d* points = local_.data();
+    const Eigen::Vector3d* beams = beams_.data();
+    Terms* gradient = gradients.data();
+    double* residual = residuals.data();
     for (int iteration = 0;; ++iteration) {
       NormalSums<P> sums;
-      rss = 0.0;
+      double sum_of_squares = 0.0;
       for (size_t j = 0; j < n; ++j) {
-        const Eigen::Vector3d& q = local_[j];
-        const Eigen::Vector3d& d = beams_[j];
+        const Eigen::Vector3d& q = points[j];
+        const Eigen::Vector3d& d = beams[j];
         double per_metre = s.rise(q.x(), q.y(), d);
         if (std::abs(per_metre) < kMaxCosGrazing) per_metre = std::copysign(kMaxCosGrazing, per_metre);
-        residuals[j] = (q.z() - s.height(q.x(), q.y())) / per_metre;  // metres along the beam
-        rss += residuals[j] * residuals[j];
+        const double e = (q.z() - s.height(q.x(), q.y())) / per_metre;  // metres along the beam
+        residual[j] = e;
+        sum_of_squares += e * e;
         // d residual / d c: the basis where the point's beam meets the surface, over per_metre.
-        gradients[j] = Terms::basis(q.x() - residuals[j] * d.x(), q.y() - residuals[j] * d.y()).over(per_metre);
-        sums.add(gradients[j], residuals[j]);
+        gradient[j] = Terms::basis(q.x() - e * d.x(), q.y() - e * d.y()).over(per_metre);
+        sums.add(gradient[j], e);
       }
+      rss = sum_of_squares;
       Eigen::Matrix<double, 6, 1> step;
       if (!solve_normal_equations<P>(sums.matrix(), sums.right(), step, &inverse)) return false;
       if (iteration == 3) break;  // three steps from the height fit: converged to well below its error
@@ -556,7 +564,7 @@ class MapReferences {
       if (iteration + 1 == steps) return s.c.allFinite();
     }
     NormalSums<P> meat_sums;
-    for (size_t j = 0; j < n; ++j) meat_sums.add_weighted(gradients[j], residuals[j] * residuals[j]);
+    for (size_t j = 0; j < n; ++j) meat_sums.add_weighted(gradient[j], residual[j] * residual[j]);
     Eigen::Matrix<double, 6, 6> meat = meat_sums.matrix();
     symmetric(meat);
     const double dof = static_cast<double>(n) / static_cast<double>(n - static_cast<size_t>(P));
