@@ -335,8 +335,20 @@ class MapReferences {
   // every point's noise (correlation +0.05), and within five robust deviations in height of it
   // (the gather is wider than `radius`: a second surface's points whose beams pass the crossing,
   // a box's face before the ground, stay out). False when fewer than kMinPoints remain.
-  static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double radius) {
+  //
+  // The height cut's scale: the patch's robust spread (kPatch), or for the incidence's strip the
+  // strip's own points' robust spread about the plane, at least the patch's (kStrip). The strip
+  // starts from the patch's tangent plane, whose slope along the beam is what it is there to
+  // correct: beside the sensor's path, where the frames' scan lines fall on one another, a patch
+  // holds one or two lines and its plane may lean by degrees, 10 cm over the strip's 2 m, and the
+  // patch's spread (a centimetre or two) then cut the strip's far end away and left the rest
+  // agreeing with the patch's lean.
+  enum class HeightCut { kPatch, kStrip };
+  static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double radius,
+                              HeightCut cut = HeightCut::kPatch) {
     to_local(patch, s);
+    thread_local std::vector<double> heights;  // of the points kept so far, off the surface
+    heights.clear();
     size_t kept = 0;
     for (size_t j = 0; j < local_.size(); ++j) {
       const Eigen::Vector3d& q = local_[j];
@@ -345,10 +357,27 @@ class MapReferences {
       if (std::abs(per_metre) < kMaxCosGrazing) continue;
       const Eigen::Vector3d on_surface = q - ((q.z() - s.height(q.x(), q.y())) / per_metre) * d;
       if ((on_surface - crossing).squaredNorm() > radius * radius) continue;
-      if (std::abs(q.z() - s.height(q.x(), q.y())) > 5.0 * s.robust_height) continue;  // another surface
+      const double off = std::abs(q.z() - s.height(q.x(), q.y()));
+      if (cut == HeightCut::kPatch && off > 5.0 * s.robust_height) continue;  // another surface
       local_[kept] = q;
       beams_[kept] = d;
+      heights.push_back(off);
       ++kept;
+    }
+    if (cut == HeightCut::kStrip && kept > 0) {
+      thread_local std::vector<double> sorted;
+      sorted = heights;
+      const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+      std::nth_element(sorted.begin(), mid, sorted.end());
+      const double limit = 5.0 * std::max(1.4826 * *mid, s.robust_height);
+      size_t near = 0;
+      for (size_t j = 0; j < kept; ++j) {
+        if (heights[j] > limit) continue;  // another surface
+        local_[near] = local_[j];
+        beams_[near] = beams_[j];
+        ++near;
+      }
+      kept = near;
     }
     local_.resize(kept);
     beams_.resize(kept);
@@ -656,7 +685,7 @@ class MapReferences {
     strip_rows = std::min(strip_rows, kMaxPatchRows);
     strip_columns = std::min(strip_columns, kMaxPatchColumns);
     gather(k, f.index(m, r), world(crossing).cast<float>(), radius, strip_rows, strip_columns, points, 1);
-    if (!select_by_beams(points, plane, crossing, radius)) return std::nullopt;
+    if (!select_by_beams(points, plane, crossing, radius, HeightCut::kStrip)) return std::nullopt;
     double rss = 0.0;
     if (!gauss_newton(plane, 3, rss, kStripSteps)) return std::nullopt;
     const Eigen::Vector3d normal = Eigen::Vector3d(-plane.c(1), -plane.c(2), 1.0).normalized();
