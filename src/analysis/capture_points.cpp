@@ -15,7 +15,6 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
-// a - b wrapped into [-pi, pi).
 // a - b wrapped into [-pi, pi). For angles within [-pi, pi] (atan2's) the fmod is one subtraction
 // or none: exact (Sterbenz) as fmod is, and the projection runs for every point of every frame.
 double angle_difference(double a, double b) {
@@ -136,10 +135,14 @@ BeamProjector::Pixel BeamProjector::from_angles(double azimuth, double elevation
   }
   const int r = rows_by_elevation_[static_cast<size_t>(it - sorted_elevation_.begin())];
   const double steps = angle_difference(azimuth, azimuth0_[static_cast<size_t>(r)]) / step_;
-  // Within half a turn of measurement id 0: a wrap by a subtraction, not a division.
+  // Within half a turn of measurement id 0: wrapped by an addition, not a division (a modulo only
+  // for what lies farther, which no finite point does).
   int m = static_cast<int>(std::lround(steps));
-  while (m >= width_) m -= width_;
-  while (m < 0) m += width_;
+  if (m < 0) m += width_;
+  if (m < 0 || m >= width_) {
+    m %= width_;
+    if (m < 0) m += width_;
+  }
   return {m, r};
 }
 
