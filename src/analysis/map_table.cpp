@@ -85,6 +85,16 @@ bool beside_step(const FramePoints& f, const BeamProjector& projector, int m, in
   return up > 0.0f && down > 0.0f && step(0.5f * (up + down), range);
 }
 
+// The robust spread of deviations about a surface: 1.4826 times their (upper) median, a Gaussian's
+// sigma. Runs once or twice per pixel: the copy it sorts is kept by each worker thread.
+double robust_spread(const std::vector<double>& deviations) {
+  thread_local std::vector<double> sorted;
+  sorted = deviations;
+  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), mid, sorted.end());
+  return 1.4826 * *mid;
+}
+
 // Two doubles in one vector register (GCC's and Clang's vector extension: SSE2, NEON): the fits'
 // terms are built and summed in pairs. Each lane's arithmetic is the scalar's.
 using Pair = double __attribute__((vector_size(16)));
@@ -347,7 +357,7 @@ class MapReferences {
   static bool select_by_beams(const Patch& patch, Surface& s, const Eigen::Vector3d& crossing, double radius,
                               HeightCut cut = HeightCut::kPatch) {
     to_local(patch, s);
-    thread_local std::vector<double> heights;  // of the points kept so far, off the surface
+    thread_local std::vector<double> heights;  // kStrip: of the points kept so far, off the surface
     heights.clear();
     size_t kept = 0;
     for (size_t j = 0; j < local_.size(); ++j) {
@@ -361,15 +371,11 @@ class MapReferences {
       if (cut == HeightCut::kPatch && off > 5.0 * s.robust_height) continue;  // another surface
       local_[kept] = q;
       beams_[kept] = d;
-      heights.push_back(off);
+      if (cut == HeightCut::kStrip) heights.push_back(off);
       ++kept;
     }
     if (cut == HeightCut::kStrip && kept > 0) {
-      thread_local std::vector<double> sorted;
-      sorted = heights;
-      const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-      std::nth_element(sorted.begin(), mid, sorted.end());
-      const double limit = 5.0 * std::max(1.4826 * *mid, s.robust_height);
+      const double limit = 5.0 * std::max(robust_spread(heights), s.robust_height);
       size_t near = 0;
       for (size_t j = 0; j < kept; ++j) {
         if (heights[j] > limit) continue;  // another surface
@@ -487,7 +493,6 @@ class MapReferences {
     // Scratch kept by each worker thread: this runs once per pixel, a few hundred thousand times.
     thread_local std::vector<Eigen::Vector3d> local;
     thread_local std::vector<double> deviations;
-    thread_local std::vector<double> sorted;
     local.clear();
     for (const auto& p : points) {
       const Eigen::Vector3d q = p - mean;
@@ -505,10 +510,7 @@ class MapReferences {
     // robust deviations off it (a Gaussian puts one of 1.7 million there).
     deviations.clear();
     for (const auto& q : local) deviations.push_back(std::abs(q.z() - s.height(q.x(), q.y())));
-    sorted = deviations;
-    const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-    std::nth_element(sorted.begin(), mid, sorted.end());
-    const double robust = 1.4826 * *mid;
+    const double robust = robust_spread(deviations);
     s.robust_height = robust;
     const auto far = std::count_if(deviations.begin(), deviations.end(), [&](double d) { return d > 5.0 * robust; });
     // A fold (a corner, an edge's two faces) is fitted by a quadric too, badly: the surface may
