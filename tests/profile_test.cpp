@@ -177,7 +177,7 @@ TEST(Profile, RangeLimitsEffectAgreesWithTheProfile) {
 // The datasheet profiles enable the effects with a sourced default (lidar-physics.md): incidence
 // with the datasheet's beam divergence (E4, [S1]) unless a fit on a real capture changed it; on
 // OS1, detection from the signal, whose default threshold is set from the OS1 range specification
-// (E5, [S1]); and what real captures support: E2 fitted, E6 (DUAL second returns); on OS2, whose
+// (E5, [S1]); and what real captures support: E2 and its tails fitted, E6 (DUAL second returns); on OS2, whose
 // only real capture is one frame of an OS-2-128, incidence and E2's tails fitted there (and no E2
 // k, which added nothing after them), and E6 with the footprint incidence found. Every effect whose parameters are not
 // the library's defaults says where they came from. The paper profiles stay the paper's law; the detection threshold of
@@ -193,7 +193,7 @@ TEST(Profile, DatasheetProfilesEnableTheEffectsWithSourcedDefaults) {
     EXPECT_EQ(has("incidence"), !paper) << name;
     EXPECT_EQ(has("dropout"), !paper && os1) << name;
     EXPECT_EQ(has("signal_precision"), !paper && (os0 || os1)) << name;
-    EXPECT_EQ(has("signal_outliers"), !paper && (os0 || os2)) << name;
+    EXPECT_EQ(has("signal_outliers"), !paper) << name;
     EXPECT_EQ(has("mixed_pixels"), !paper) << name;
     for (const json& effect : profile.effects) {
       const std::string source = effect.value("source", "");
