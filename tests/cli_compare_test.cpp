@@ -572,6 +572,23 @@ TEST_F(Compare, FitAddsTheMissingEffectAndTheErrorFallsOnHeldOutFrames) {
       lidartwin("fit" + measured + " --profile " + os1_64() + " --add fog --out " + (dir / "no.json").string());
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("--add fog: not an effect the fit can estimate"), std::string::npos) << refused.err;
+  // An effect's document names the parameters to fit and their start; a bad one is refused by name
+  // before the capture is read, and nothing is written.
+  const std::vector<std::pair<std::string, std::string>> bad_documents = {
+      {R"({"name": "dropout", "width": )", "not a JSON document"},
+      {R"({"width": 0.3})", "the document needs the effect's \"name\""},
+      {R"({"name": "dropout", "width": "0.3"})", "\"width\" is not a number"},
+      {R"({"name": "dropout", "widht": 0.3})", "unknown key of dropout"},
+      {R"({"name": "dropout", "width": -1})", "width: must be in"},
+  };
+  for (const auto& [document, why] : bad_documents) {
+    const CliRun bad = lidartwin("fit" + measured + " --profile " + os1_64() + " --add '" + document + "' --out " +
+                                 (dir / "no.json").string());
+    EXPECT_EQ(bad.code, 2) << document;
+    EXPECT_NE(bad.err.find("--add " + document + ": "), std::string::npos) << bad.err;
+    EXPECT_NE(bad.err.find(why), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(dir / "no.json")) << document;
+  }
 }
 
 // A fitted parameter as report.html's diagnosis lists it: "width = 0.3 [0.2962, 0.3036]".

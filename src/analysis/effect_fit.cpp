@@ -56,8 +56,15 @@ nlohmann::json::json_pointer pointer(const std::string& name) { return nlohmann:
 std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise) {
   const std::string name(effect.name());
   if (name == "beam_calibration") return std::nullopt;  // its closed form fits it as a missing effect only
-  for (const CandidateSpec& spec : candidate_specs()) {
-    if (spec.effect == name) return spec;
+  for (CandidateSpec spec : candidate_specs()) {
+    if (spec.effect != name) continue;
+    // A saturating footprint (incidence's tan_saturation) refits with the rest where the profile
+    // has one; the search's candidate keeps the footprint law, whose form the simulated captures
+    // follow.
+    for (const EffectParameter& p : effect.parameters()) {
+      if (p.name == "tan_saturation" && p.value > 0.0) spec.free.push_back({p.name, p.value, 0.5 * p.value});
+    }
+    return spec;
   }
   if (!range_noise || (name != "range_noise_linear" && name != "range_noise_piecewise")) return std::nullopt;
   CandidateSpec spec{name, {}, nullptr};
@@ -601,8 +608,15 @@ std::optional<ParameterMisfit> refit_in_place(const PixelTable& t, const FitRows
 CandidateSpec spec_of(const nlohmann::json& effect) {
   const EffectChain probe = EffectChain::from_json(nlohmann::json::array({effect}), "--add");
   CandidateSpec spec{effect.at("name").get<std::string>(), {}, effect};
-  for (const EffectParameter& p : probe.effects().front()->parameters()) {
-    if (p.fixed || p.name.find('/') != std::string::npos) continue;  // structural, or inside a table
+  // A document that names free parameters fits those, from the values it gives; one that names none
+  // (a bare name, or only fixed ones: the material an offset applies to) fits them all.
+  const std::vector<EffectParameter> parameters = probe.effects().front()->parameters();
+  const auto fittable = [](const EffectParameter& p) { return !p.fixed && p.name.find('/') == std::string::npos; };
+  const bool named = std::any_of(parameters.begin(), parameters.end(),
+                                 [&](const EffectParameter& p) { return fittable(p) && effect.contains(p.name); });
+  for (const EffectParameter& p : parameters) {
+    if (!fittable(p)) continue;  // structural, or inside a table
+    if (named && !effect.contains(p.name)) continue;
     spec.free.push_back({p.name, p.value, std::max(0.1 * (p.upper - p.lower), 1e-9)});
   }
   if (spec.free.empty()) throw InputError(fmt::format("--add {}: it has no parameter to fit", spec.effect));

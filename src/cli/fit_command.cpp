@@ -132,6 +132,31 @@ std::vector<std::pair<std::string, std::string>> replacements(const std::vector<
   return out;
 }
 
+// --add EFFECT, or an effect's JSON document: the parameters it names are fitted, from its values.
+nlohmann::json effect_to_add(const std::string& flag) {
+  if (flag.empty() || flag.front() != '{') return {{"name", flag}};
+  nlohmann::json effect;
+  try {
+    effect = nlohmann::json::parse(flag);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(fmt::format("--add {}: not a JSON document ({})", flag, e.what()));
+  }
+  if (!effect.contains("name") || !effect["name"].is_string()) {
+    throw InputError(fmt::format("--add {}: the document needs the effect's \"name\"", flag));
+  }
+  if (effect.size() == 1) return effect;
+  for (const auto& [key, value] : effect.items()) {
+    if (key != "name" && !value.is_number()) {
+      throw InputError(
+          fmt::format("--add {}: \"{}\" is not a number; the document gives the parameters to fit, "
+                      "with the values they start from",
+                      flag, key));
+    }
+  }
+  (void)EffectChain::from_json(nlohmann::json::array({effect}), "--add " + flag);  // known keys, values in range
+  return effect;
+}
+
 // --auto: what the diagnosis selects, replacements included, on the profile with its refits.
 Fitted fit_automatically(const Measured& measured, const EffectChain& chain, const DiagnoseOptions& options) {
   MisfitOptions misfit_options;
@@ -145,12 +170,12 @@ Fitted fit_automatically(const Measured& measured, const EffectChain& chain, con
 }
 
 // --replace, --refit-noise and --add, in that order after the radiometry (fit_profile).
-Fitted fit_as_asked(const FitFlags& flags, const Measured& measured, const EffectChain& chain,
-                    const DiagnoseOptions& options) {
+Fitted fit_as_asked(const FitFlags& flags, std::vector<nlohmann::json> add, const Measured& measured,
+                    const EffectChain& chain, const DiagnoseOptions& options) {
   FitPlan plan;
   plan.replace = replacements(flags.replace);
   plan.refit_noise = flags.refit_noise;
-  for (const std::string& name : flags.add) plan.add.push_back({{"name", name}});
+  plan.add = std::move(add);
   FittedProfile fitted = fit_profile(measured.table, chain, plan, options);
   Fitted out{fitted.chain, {}, std::move(fitted.replaced), std::move(fitted.added)};
   for (const ParameterMisfit& m : fitted.refits) out.refits.push_back(m.refit);
@@ -175,6 +200,8 @@ int run_fit(const FitFlags& flags) {
   if (!flags.automatic && flags.add.empty() && flags.replace.empty() && !flags.refit_noise) {
     throw InputError("fit: give --add EFFECT, --replace EFFECT=REPLACEMENT or --refit-noise, or --auto");
   }
+  std::vector<nlohmann::json> add;  // checked before the capture is read
+  for (const std::string& flag : flags.add) add.push_back(effect_to_add(flag));
   // A unit's metadata gives its twin: the written profile keeps the unit's beam intrinsics.
   const SensorChoice sensor = load_sensor(flags.profile);
   const SensorProfile& profile = sensor.profile;
@@ -189,8 +216,8 @@ int run_fit(const FitFlags& flags) {
   options.pool = &pool;
   options.progress = [&steps](const std::string& what) { steps.note("fitting: " + what); };
   steps.start("fitting");
-  const Fitted fitted =
-      flags.automatic ? fit_automatically(measured, chain, options) : fit_as_asked(flags, measured, chain, options);
+  const Fitted fitted = flags.automatic ? fit_automatically(measured, chain, options)
+                                        : fit_as_asked(flags, std::move(add), measured, chain, options);
   steps.done();
   // The profile file as it is (a twin's as made from its unit), with the fitted chain and the notes.
   nlohmann::json document = sensor.document;
@@ -226,7 +253,11 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--profile", flags->profile,
                   "the profile to extend (name or .json), or a unit's metadata .json (its twin)")
       ->required();
-  auto* add = sub->add_option("--add", flags->add, "effects to add and fit, in order (registry names)");
+  auto* add =
+      sub->add_option("--add", flags->add,
+                      "effects to add and fit, in order: registry names, or an effect's JSON document, whose named "
+                      "parameters are fitted from the values it gives "
+                      "('{\"name\": \"incidence\", \"divergence_rad\": 0.002, \"tan_saturation\": 3}')");
   auto* replace =
       sub->add_option("--replace", flags->replace,
                       "EFFECT=REPLACEMENT: the profile's range noise law replaced by another form, fitted in its place "
