@@ -257,7 +257,7 @@ void setup_fit(CLI::App& app, std::function<int()>& run) {
       sub->add_option("--add", flags->add,
                       "effects to add and fit, in order: registry names, or an effect's JSON document, whose named "
                       "parameters are fitted from the values it gives "
-                      "('{\"name\": \"incidence\", \"divergence_rad\": 0.002, \"tan_saturation\": 3}')");
+                      "('{\"name\": \"incidence\", \"divergence_rad\": 0.002, \"saturation\": 0.3}')");
   auto* replace =
       sub->add_option("--replace", flags->replace,
                       "EFFECT=REPLACEMENT: the profile's range noise law replaced by another form, fitted in its place "

@@ -7,12 +7,13 @@
 // Default divergence: 0.13 degrees, the OS1-64's (lidar-physics.md E4, from the datasheet [S1]);
 // kappa defaults to 0 (no published value for Ouster). tan(theta) is capped at 20 (87 degrees):
 // beyond it the footprint model is meaningless and the return is mostly gone anyway.
-// tan_saturation t > 0 lets the footprint's depth saturate, tan(theta) becoming
-//   tan(theta) / (1 + tan(theta) / t)      (about tan(theta) below t, at most t beyond it)
+// saturation s >= 0 lets the footprint's depth saturate, tan(theta) becoming
+//   tan(theta) / (1 + s tan(theta))      (about tan(theta) below 1/s, at most 1/s beyond it)
 // [proposed, fitted on real captures]: on the real OS-1-128 and OS-2-128 samples the spread grows
 // with incidence more slowly than r tan(theta) towards grazing (the footprint's far part, dimmer by
-// r^-2 and cos, counts less in the detector's timing than its near part); 0, the default, is the
-// footprint law above.
+// r^-2 and cos, counts less in the detector's timing than its near part). s = 0, the default, is
+// the footprint law above, and the law is nested in the saturating form, so a fit can test one
+// against the other from s = 0.
 #include <algorithm>
 #include <cmath>
 
@@ -29,7 +30,7 @@ constexpr float kMinCos = 1.0f / 400.0f;  // below 1 / kMaxTan: the cap decides
 struct IncidenceParameters {
   double divergence_rad = 0.13 * 3.141592653589793 / 180.0;
   double bias_factor = 0.0;
-  double tan_saturation = 0.0;  // 0: tan(theta) itself
+  double saturation = 0.0;  // 0: tan(theta) itself
 };
 
 class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
@@ -39,7 +40,7 @@ class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
   static constexpr std::array<ParameterSpec<P>, 3> kSpecs{{
       {"divergence_rad", &P::divergence_rad, {0.0, 0.05}},
       {"bias_factor", &P::bias_factor, {-2.0, 2.0}},
-      {"tan_saturation", &P::tan_saturation, {0.0, 1000.0}},
+      {"saturation", &P::saturation, {0.0, 10.0}},
   }};
   using TabledEffect::TabledEffect;
 
@@ -71,8 +72,8 @@ class Incidence final : public TabledEffect<Incidence, IncidenceParameters> {
   double footprint_m(const IdealReturn& ideal) const {
     const float c = std::clamp(ideal.cos_incidence, kMinCos, 1.0f);
     float tan_theta = std::min(std::sqrt(1.0f - c * c) / c, kMaxTan);
-    if (const auto t = static_cast<float>(params().tan_saturation); t > 0.0f)
-      tan_theta = tan_theta / (1.0f + tan_theta / t);
+    if (const auto s = static_cast<float>(params().saturation); s > 0.0f)
+      tan_theta = tan_theta / (1.0f + s * tan_theta);
     return static_cast<double>(ideal.range_m * tan_theta) * params().divergence_rad;
   }
 };

@@ -38,23 +38,23 @@ TEST(Incidence, SamplesMatchPrediction) {
 
 }  // namespace
 
-// tan_saturation t: the footprint's depth grows as tan(theta) / (1 + tan(theta) / t), about the
-// footprint law at small angles, at most t times r * gamma towards grazing; simulate draws what
-// predict says with it too.
+// saturation s: the footprint's depth grows as tan(theta) / (1 + s tan(theta)), about the
+// footprint law at small angles, at most r * gamma / s towards grazing; simulate draws what predict
+// says with it too.
 TEST(Incidence, ASaturatingFootprintBendsTanThetaOverAndSamplesMatch) {
   json saturating = kIncidence;
-  saturating["tan_saturation"] = 4.0;
+  saturating["saturation"] = 0.25;
   const EffectChain chain = chain_of(json::array({saturating}));
   const EffectChain footprint_law = chain_of(json::array({kIncidence}));
   for (const double degrees : {10.0, 45.0, 75.0, 85.0}) {
     const auto c = static_cast<float>(std::cos(degrees * 3.141592653589793 / 180.0));
     const double tan_theta = std::tan(std::acos(static_cast<double>(c)));
-    const double footprint = 20.0 * tan_theta / (1.0 + tan_theta / 4.0) * 0.002;
+    const double footprint = 20.0 * tan_theta / (1.0 + 0.25 * tan_theta) * 0.002;
     const Prediction p = chain.predict(surface(20.0f, 0.5f, c), {});
     EXPECT_NEAR(std::sqrt(p.variance_m2), footprint / 2.3548200450309493, 1e-5 * footprint) << degrees;
     EXPECT_NEAR(p.bias_m, 0.5 * footprint, 1e-5 * footprint) << degrees;
     EXPECT_LT(p.variance_m2, footprint_law.predict(surface(20.0f, 0.5f, c), {}).variance_m2) << degrees;
-    EXPECT_LT(footprint, 20.0 * 4.0 * 0.002) << degrees;
+    EXPECT_LT(footprint, 20.0 / 0.25 * 0.002) << degrees;
   }
   for (const float c : {0.9f, 0.2f}) {
     const IdealReturn in = surface(15.0f, 0.5f, c);
