@@ -365,9 +365,10 @@ class MapReferences {
       const Eigen::Vector3d& d = beams_[j];
       const double per_metre = s.rise(q.x(), q.y(), d);
       if (std::abs(per_metre) < kMaxCosGrazing) continue;
-      const Eigen::Vector3d on_surface = q - ((q.z() - s.height(q.x(), q.y())) / per_metre) * d;
+      const double above = q.z() - s.height(q.x(), q.y());  // the surface's quadric, once a point
+      const Eigen::Vector3d on_surface = q - (above / per_metre) * d;
       if ((on_surface - crossing).squaredNorm() > radius * radius) continue;
-      const double off = std::abs(q.z() - s.height(q.x(), q.y()));
+      const double off = std::abs(above);
       if (cut == HeightCut::kPatch && off > 5.0 * s.robust_height) continue;  // another surface
       local_[kept] = q;
       beams_[kept] = d;
