@@ -41,6 +41,20 @@ class WindowedPoses final : public PoseSource {
   PoseSpan span_;
 };
 
+// A sensor driving through the room and spinning about its axis (a column's rays turn a third of
+// the columns' spacing further), each column observed from its own place.
+class MovingPoses final : public PoseSource {
+ public:
+  Pose at(double t) const override {
+    Pose pose;
+    pose.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * t, Eigen::Vector3d::UnitZ()));
+    pose.translation = Eigen::Vector3d(-2.0 + 10.0 * t, 1.0 - 5.0 * t, 0.2 * t);
+    return pose;
+  }
+  PoseSpan span() const override { return {}; }
+  double start_s() const override { return 0.0; }
+};
+
 class FrameTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -49,10 +63,18 @@ class FrameTest : public ::testing::Test {
     // A closed 20 m x 20 m x 10 m room around the sensor: every beam hits a wall 5-14 m away.
     test::write_glb(dir_ / "room.glb", {test::box("room", {-10, -10, -5}, {10, 10, 5}, 0.3f)});
     scene_ = new Scene(Scene::load(dir_ / "room.glb"));
+    // The same room with pillars in it: depth steps, where E6 reads the columns beside a pixel.
+    test::write_glb(dir_ / "pillars.glb", {test::box("room", {-10, -10, -5}, {10, 10, 5}, 0.3f),
+                                           test::box("pillar_a", {3, 2, -5}, {3.4, 2.4, 5}, 0.8f),
+                                           test::box("pillar_b", {-4, -6, -5}, {-3.7, -5.7, 5}, 0.1f),
+                                           test::box("pillar_c", {1, -3, -5}, {1.2, -2.8, 5}, 0.6f),
+                                           test::box("pillar_d", {-2, 5, -5}, {-1.5, 5.5, 5}, 0.4f)});
+    pillars_ = new Scene(Scene::load(dir_ / "pillars.glb"));
     profile_ = new SensorProfile(load_profile("os1-64"));
   }
   static void TearDownTestSuite() {
     delete scene_;
+    delete pillars_;
     delete profile_;
     std::filesystem::remove_all(dir_);
   }
@@ -77,19 +99,17 @@ class FrameTest : public ::testing::Test {
     return s;
   }
 
-  // Frame `frame` as the bytes of its packets.
+  // Frame `frame` as the bytes of its packets, rendered whole or as the packet ranges [0, splits[0]),
+  // [splits[0], splits[1]), ... in reverse order.
   static std::vector<uint8_t> render_bytes(const LidarDataFormat& f, int threads, const nlohmann::json& chain,
-                                           uint64_t frame = 3, size_t split = 0) {
+                                           uint64_t frame = 3, std::vector<size_t> splits = {},
+                                           const PoseSource& poses = StaticPose(Pose{}), const Scene* scene = scene_) {
     WorkerPool pool(threads);
-    const StaticPose poses(Pose{});
-    const ForwardModel model(*scene_, poses, setup(f, chain), pool);
+    const ForwardModel model(*scene, poses, setup(f, chain), pool);
     EncodedFrame encoded = model.make_frame_buffer();
-    if (split == 0) {
-      model.render(frame, encoded);
-    } else {
-      model.render(frame, split, model.packet_columns().size(), encoded);  // out of order on purpose
-      model.render(frame, 0, split, encoded);
-    }
+    splits.insert(splits.begin(), 0);
+    splits.push_back(model.packet_columns().size());
+    for (size_t i = splits.size() - 1; i > 0; --i) model.render(frame, splits[i - 1], splits[i], encoded);
     return encoded.bytes;
   }
 
@@ -115,6 +135,7 @@ class FrameTest : public ::testing::Test {
 
   static inline std::filesystem::path dir_;
   static inline Scene* scene_ = nullptr;
+  static inline Scene* pillars_ = nullptr;
   static inline SensorProfile* profile_ = nullptr;
 };
 
@@ -128,7 +149,39 @@ TEST_F(FrameTest, AnyThreadCountGivesTheSameBytes) {
 
 TEST_F(FrameTest, AnyPacketSplitGivesTheSameBytes) {
   const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
-  EXPECT_EQ(render_bytes(f, 2, profile_->effects), render_bytes(f, 2, profile_->effects, 3, 7));
+  EXPECT_EQ(render_bytes(f, 2, profile_->effects), render_bytes(f, 2, profile_->effects, 3, {7}));
+}
+
+// Workers walk runs of packets, and a packet's edge partners (E6) read the columns beside it from
+// the next packet's own cast or, at a run's end, from a cast of that column alone. On a sensor that
+// moves and turns, with pillars to make depth steps and the mount's jitter (E11) moving every
+// column's rays, the two must be the same rays: the frame is the same bytes for any split of its
+// packets into runs and any thread count.
+TEST_F(FrameTest, EdgePartnersOfAMovingSensorDoNotDependOnHowPacketsAreSplit) {
+  const auto f = format(UdpProfileLidar::kRng19Rfl8Sig16Nir16);
+  nlohmann::json chain = profile_->effects;
+  for (auto& effect : chain) {  // a footprint as wide as the beams' spacing: most edge pixels mix
+    if (effect["name"] == "mixed_pixels") effect["divergence_rad"] = 0.012;
+  }
+  chain.push_back({{"name", "vibration"}, {"angular_rms_deg", 0.05}, {"translation_rms_m", 0.005}});
+  const MovingPoses poses;
+  const auto whole = render_bytes(f, 1, chain, 3, {}, poses, pillars_);
+  EXPECT_TRUE(whole == render_bytes(f, 3, chain, 3, {}, poses, pillars_)) << "3 threads";
+  EXPECT_TRUE(whole == render_bytes(f, 2, chain, 3, {1, 2, 5, 13, 14, 20, 31}, poses, pillars_)) << "split";
+  std::vector<size_t> each;
+  for (size_t i = 1; i < 32; ++i) each.push_back(i);
+  EXPECT_TRUE(whole == render_bytes(f, 1, chain, 3, each, poses, pillars_)) << "a packet at a time";
+  // The pillars' edges give mixed pixels: with a footprint of width 0 (the same noise streams, no
+  // mixing) the frame differs.
+  nlohmann::json without = chain;
+  for (auto& effect : without) {
+    if (effect["name"] == "mixed_pixels") effect["divergence_rad"] = 0.0;
+  }
+  const auto plain = render_bytes(f, 1, without, 3, {}, poses, pillars_);
+  ASSERT_EQ(plain.size(), whole.size());
+  size_t differ = 0;
+  for (size_t i = 0; i < whole.size(); ++i) differ += plain[i] != whole[i];
+  EXPECT_GT(differ, 100u) << "E6 should change the pixels at the pillars' edges";
 }
 
 TEST_F(FrameTest, HeadersCarryTheSensorsIdentityAndFrameId) {

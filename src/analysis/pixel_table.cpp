@@ -383,9 +383,9 @@ class ItemProgress {
 
 // Each observed column's beams cast from the column's pose at its own timestamp, and each pixel's
 // measurement, ideal return and prediction written to the table. The capture's frames go through
-// the forward model's cast stage as `record` casts them, a packet's columns per work item: frame
-// f's valid columns are its observed ones, each posed at its own timestamp, its time (E12) counted
-// from the capture's first observed column. Returns whether the chain predicted no spread for a
+// the forward model's cast stage as `record` casts them, a walk along consecutive packets per work
+// item: frame f's valid columns are its observed ones, each posed at its own timestamp, its time
+// (E12) counted from the capture's first observed column. Returns whether the chain predicted no spread for a
 // pixel it detects.
 bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedColumn>& observed, const CastStage& cast,
                       uint64_t first_stamp, PixelTable& table, WorkerPool& pool) {
@@ -400,53 +400,70 @@ bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedCo
         static_cast<int64_t>(oc.first_pixel);
   }
   struct Scratch {
-    FrameColumns columns;  // the frame's columns; a worker fills those of its packet
-    CastStage::Block block;
+    FrameColumns columns;  // the frame's columns; a worker fills those of its piece
+    CastStage::Walk walk;
   };
   std::vector<Scratch> scratch;
   for (int w = 0; w < pool.size(); ++w) {
     scratch.push_back({FrameColumns{0, std::vector<Pose>(static_cast<size_t>(width)),
                                     std::vector<uint8_t>(static_cast<size_t>(width)),
                                     std::vector<double>(static_cast<size_t>(width))},
-                       cast.make_block(static_cast<size_t>(per_packet))});
+                       cast.make_walk(static_cast<size_t>(per_packet))});
   }
-  const int items = static_cast<int>(setup.capture.frames.size()) * packets;
+  // Each frame's packets in pieces of consecutive packets, as `record` renders them.
+  const std::vector<WorkPiece> pieces = guided_pieces(packets, pool.size());
+  const int items = static_cast<int>(setup.capture.frames.size() * pieces.size());
   std::atomic<bool> no_spread{false};
   ItemProgress progress(setup.progress, items);
   pool.run(items, [&](int worker, int item) {
     Scratch& s = scratch[static_cast<size_t>(worker)];
-    const auto f = static_cast<size_t>(item / packets);
-    const int begin = (item % packets) * per_packet, end = begin + per_packet;
+    const auto f = static_cast<size_t>(item) / pieces.size();
+    const WorkPiece piece = pieces[static_cast<size_t>(item) % pieces.size()];
     const Scan& scan = setup.capture.frames[f].scan;
     const int64_t* rows = &first_row[f * static_cast<size_t>(width)];
     s.columns.frame_index = f;
-    bool any = false;
-    for (int m = begin; m < end; ++m) {
-      const auto column = static_cast<size_t>(m);
-      s.columns.observed[column] = rows[column] >= 0 ? 1 : 0;
-      if (!s.columns.observed[column]) continue;
-      any = true;
-      const uint64_t stamp = scan.timestamp_ns[column];
-      s.columns.poses[column] = setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s);
-      s.columns.times_s[column] = static_cast<double>(stamp - first_stamp) * 1e-9;
-    }
-    if (any) cast.cast(s.columns, begin, end, s.block);
-    for (int m = begin; m < end && any; ++m) {
-      if (!s.columns.observed[static_cast<size_t>(m)]) continue;
-      const ColumnContext context = cast.context(s.columns, m);
-      const std::span<const IdealReturn> ideal = s.block.column(m);
-      for (int r = 0; r < height; ++r) {
-        const size_t p = static_cast<size_t>(rows[m]) + static_cast<size_t>(r);
-        table.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
-        IdealReturn hit = ideal[static_cast<size_t>(r)];
-        table.set_ideal(p, hit);
-        // Predicted at the incidence the table holds (in degrees, PixelTable::set_incidence), so
-        // that a fit predicting the pixel again from the table starts from the same figures.
-        hit.cos_incidence = table.cos_incidence[p];
-        const Prediction prediction = setup.chain.predict(hit, context);
-        const RangeModel model = range_model(prediction, hit.range_m, table.context.range_step_m, cast.reach_m());
-        if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
-        table.set_prediction(p, prediction, model);
+    // Column m observed when its packet arrived valid, posed at its own timestamp.
+    const ColumnLocator locate = [&](int m) -> std::optional<LocatedColumn> {
+      if (rows[m] < 0) return std::nullopt;
+      const uint64_t stamp = scan.timestamp_ns[static_cast<size_t>(m)];
+      return LocatedColumn{setup.poses.at(static_cast<double>(stamp) * 1e-9 + setup.time_offset_s),
+                           static_cast<double>(stamp - first_stamp) * 1e-9};
+    };
+    const auto prepare = [&](int begin) {
+      for (int m = begin; m < begin + per_packet; ++m) {
+        const auto column = static_cast<size_t>(m);
+        const std::optional<LocatedColumn> located = locate(m);
+        s.columns.observed[column] = located ? 1 : 0;
+        if (!located) continue;
+        s.columns.poses[column] = located->pose;
+        s.columns.times_s[column] = located->time_s;
+      }
+    };
+    const int first = piece.first * per_packet;
+    prepare(first);
+    cast.start(s.columns, first, first + per_packet, locate, s.walk);
+    for (int k = 0; k < piece.size; ++k) {
+      const int begin = first + k * per_packet, end = begin + per_packet;
+      const bool last = k + 1 == piece.size;
+      if (!last) prepare(end);
+      const CastStage::Block& block = cast.advance(s.columns, last ? end : end + per_packet, locate, s.walk);
+      for (int m = begin; m < end; ++m) {
+        if (!s.columns.observed[static_cast<size_t>(m)]) continue;
+        const ColumnContext context = cast.context(s.columns, m);
+        const std::span<const IdealReturn> ideal = block.column(m);
+        for (int r = 0; r < height; ++r) {
+          const size_t p = static_cast<size_t>(rows[m]) + static_cast<size_t>(r);
+          table.set_measured(p, static_cast<uint32_t>(f), scan, m, r);
+          IdealReturn hit = ideal[static_cast<size_t>(r)];
+          table.set_ideal(p, hit);
+          // Predicted at the incidence the table holds (in degrees, PixelTable::set_incidence), so
+          // that a fit predicting the pixel again from the table starts from the same figures.
+          hit.cos_incidence = table.cos_incidence[p];
+          const Prediction prediction = setup.chain.predict(hit, context);
+          const RangeModel model = range_model(prediction, hit.range_m, table.context.range_step_m, cast.reach_m());
+          if (hit.hit() && model.p_detect > 0.0 && model.sigma_m <= 0.0) no_spread = true;
+          table.set_prediction(p, prediction, model);
+        }
       }
     }
     progress.item_done();

@@ -1,7 +1,7 @@
-// The forward model's cast stage: a block of a frame's columns cast, with edge partners.
+// The forward model's cast stage: blocks of a frame's columns cast in a walk, with edge partners.
 #include "lidartwin/frame/cast_stage.h"
 
-#include <array>
+#include <algorithm>
 #include <cassert>
 
 namespace lidartwin {
@@ -18,53 +18,105 @@ CastStage::CastStage(const Scene& scene, const BeamIntrinsics& beams, int width,
       moves_(use == Use::kSimulate && chain.moves_sensor()),
       partners_(use == Use::kPredict || chain.needs_edge_partners()) {}
 
-ColumnContext CastStage::context(const FrameColumns& columns, int m) const {
+ColumnContext CastStage::context_at(uint64_t frame, int m, double time_s) const {
   ColumnContext c = wire_;
-  c.frame = columns.frame_index;
+  c.frame = frame;
   c.column = static_cast<uint32_t>(m);
-  if (!columns.times_s.empty()) c.time_s = columns.times_s[static_cast<size_t>(m)];
+  c.time_s = time_s;
   return c;
 }
 
-void CastStage::cast(const FrameColumns& columns, int begin, int end, Block& block) const {
+ColumnContext CastStage::context(const FrameColumns& columns, int m) const {
+  return context_at(columns.frame_index, m, columns.times_s.empty() ? 0.0 : columns.times_s[static_cast<size_t>(m)]);
+}
+
+Pose CastStage::cast_pose(const Pose& pose, uint64_t frame, int m, double time_s) const {
+  return moves_ ? chain_.moved_pose(pose, context_at(frame, m, time_s)) : pose;
+}
+
+void CastStage::cast_block(const FrameColumns& columns, int begin, int end, Block& block) const {
   assert(0 <= begin && begin <= end && static_cast<size_t>(end - begin) <= block.ideal_.size());
   block.begin_ = begin;
+  block.end_ = end;
   block.cast_.clear();
   for (int m = begin; m < end; ++m) {
     const auto column = static_cast<size_t>(m);
     if (!columns.observed[column]) continue;
     const Pose* pose = &columns.poses[column];
-    if (moves_) pose = &(block.moved_[static_cast<size_t>(m - begin)] = chain_.moved_pose(*pose, context(columns, m)));
+    if (moves_)
+      pose = &(block.moved_[static_cast<size_t>(m - begin)] =
+                   cast_pose(*pose, columns.frame_index, m, context(columns, m).time_s));
     block.cast_.push_back({m, pose, block.ideal_[static_cast<size_t>(m - begin)]});
   }
   caster_.cast(block.cast_);
-  if (partners_) find_partners(columns, begin, end, block);
+}
+
+// Only where the block's edge column hit: a partner is chosen for hits alone, and the sky beside
+// a block is not cast at all. A column of the same frame is cast as its own block casts it (its
+// pose, moved by E11 when the chain moves the sensor), so a block's partners do not depend on
+// which worker cast its neighbour; the previous or next frame's column, a column's time away, from
+// the edge column's pose.
+std::span<const IdealReturn> CastStage::cast_beside(const FrameColumns& columns, int beside,
+                                                    const ColumnLocator& locate, Block& block,
+                                                    std::vector<IdealReturn>& out) const {
+  const auto width = static_cast<int>(columns.observed.size());
+  const int edge = beside < block.begin_ ? block.begin_ : block.end_ - 1;
+  if (!columns.observed[static_cast<size_t>(edge)]) return {};
+  if (beside >= 0 && beside < width) {
+    const std::optional<LocatedColumn> located = locate(beside);
+    if (!located) return {};  // not observed: no one's partner
+    block.beside_pose_ = cast_pose(located->pose, columns.frame_index, beside, located->time_s);
+  } else {
+    block.beside_pose_ = columns.poses[static_cast<size_t>(edge)];
+    beside = (beside + width) % width;
+  }
+  const ColumnCaster::Column column{beside, &block.beside_pose_, out, block.column(edge)};
+  caster_.cast(std::span<const ColumnCaster::Column>(&column, 1));
+  return out;
+}
+
+void CastStage::start(const FrameColumns& columns, int begin, int end, const ColumnLocator& locate, Walk& walk) const {
+  Block& block = walk.blocks_[walk.current_];
+  cast_block(columns, begin, end, block);
+  block.has_before_ = partners_ && !cast_beside(columns, begin - 1, locate, block, block.before_).empty();
+}
+
+const CastStage::Block& CastStage::advance(const FrameColumns& columns, int next_end, const ColumnLocator& locate,
+                                           Walk& walk) const {
+  Block& block = walk.blocks_[walk.current_];
+  Block& next = walk.blocks_[1 - walk.current_];
+  const int end = block.end_;
+  const bool walks_on = next_end > end;
+  if (walks_on) cast_block(columns, end, next_end, next);
+  if (!partners_) {
+    walk.current_ = 1 - walk.current_;
+    return block;
+  }
+  std::span<const IdealReturn> right;
+  if (walks_on) {
+    if (columns.observed[static_cast<size_t>(end)]) right = next.column(end);
+  } else {
+    right = cast_beside(columns, end, locate, block, block.after_);
+  }
+  find_partners(columns, block, right);
+  if (walks_on) {  // the next block's left neighbour, before this block's buffers take the one after
+    next.has_before_ = columns.observed[static_cast<size_t>(end - 1)] != 0;
+    if (next.has_before_) std::ranges::copy(block.column(end - 1), next.before_.begin());
+  }
+  walk.current_ = 1 - walk.current_;
+  return block;
 }
 
 // E6's edge partners of the block's columns, from their rows above and below and the adjacent
-// columns (choose_edge_partner). The columns just beyond the block are cast here, from the pose of
-// the block's column beside each, and only where that column hit (a partner is chosen for hits
-// alone): the two together, eight rows of both per packet, which Embree traverses faster than
-// sixteen rows of one, and the sky beside a block is not cast at all.
-void CastStage::find_partners(const FrameColumns& columns, int begin, int end, Block& block) const {
-  const auto width = static_cast<int>(columns.observed.size());
-  const auto observed = [&](int m) { return columns.observed[static_cast<size_t>((m + width) % width)] != 0; };
-  std::array<ColumnCaster::Column, 2> beside;
-  size_t n = 0;
-  if (observed(begin)) {
-    beside[n++] = {(begin - 1 + width) % width, &columns.poses[static_cast<size_t>(begin)], block.before_,
-                   block.ideal_.front()};
-  }
-  if (observed(end - 1)) {
-    beside[n++] = {end % width, &columns.poses[static_cast<size_t>(end - 1)], block.after_,
-                   block.ideal_[static_cast<size_t>(end - 1 - begin)]};
-  }
-  if (n > 0) caster_.cast(std::span<const ColumnCaster::Column>(beside.data(), n));
+// columns (choose_edge_partner); unobserved columns are not cast and are no one's partner.
+void CastStage::find_partners(const FrameColumns& columns, Block& block, std::span<const IdealReturn> right) const {
+  const int begin = block.begin_, end = block.end_;
+  const auto observed = [&](int m) { return columns.observed[static_cast<size_t>(m)] != 0; };
   const auto cast_column = [&](int m) -> std::span<const IdealReturn> {
-    if (m < begin) return block.before_;
-    if (m >= end) return block.after_;
-    return observed(m) ? std::span<const IdealReturn>(block.ideal_[static_cast<size_t>(m - begin)])
-                       : std::span<const IdealReturn>();
+    if (m < begin)
+      return block.has_before_ ? std::span<const IdealReturn>(block.before_) : std::span<const IdealReturn>();
+    if (m >= end) return right;
+    return observed(m) ? block.column(m) : std::span<const IdealReturn>();
   };
   for (int m = begin; m < end; ++m) {
     if (!observed(m)) continue;

@@ -16,10 +16,10 @@ namespace lidartwin {
 using PacketReady = ForwardModel::PacketReady;
 
 struct ForwardModel::Impl {
-  // One worker's buffers, so the hot loop allocates nothing: the cast of a packet's columns, and
+  // One worker's buffers, so the hot loop allocates nothing: its walk along packets' columns, and
   // one column of measurements (the effect chain, column by column).
   struct Scratch {
-    CastStage::Block block;
+    CastStage::Walk walk;
     MeasuredColumn measured;
   };
 
@@ -46,7 +46,7 @@ struct ForwardModel::Impl {
       index_of_first[static_cast<size_t>(firsts[i] / f.columns_per_packet)] = static_cast<int>(i);
     }
     for (int w = 0; w < pool.size(); ++w) {
-      scratch.push_back({cast.make_block(static_cast<size_t>(f.columns_per_packet)),
+      scratch.push_back({cast.make_walk(static_cast<size_t>(f.columns_per_packet)),
                          MeasuredColumn(static_cast<size_t>(f.pixels_per_column))});
     }
   }
@@ -73,22 +73,27 @@ struct ForwardModel::Impl {
     return {out.bytes.data() + index * size, size};
   }
 
-  // Columns [first, last) of frame k: from where each was observed, and whether at all (in the
-  // column window, 6.4, with a pose the source stands behind). Without per-column poses every
-  // column is cast from the frame's first column's pose (motion distortion left out). Returns the
-  // columns in the window that had no pose.
+  // Column m of frame k: from where it was observed, or not at all (outside the column window,
+  // 6.4, or no pose the source stands behind). Without per-column poses every column is cast from
+  // the frame's first column's pose (motion distortion left out).
+  std::optional<LocatedColumn> locate_column(uint64_t frame, int m, const PoseSpan& span) const {
+    const double time_s = clock.column_pose_time_s(frame, m);
+    const double pose_time_s = per_column_poses ? time_s : clock.column_pose_time_s(frame, 0);
+    if (!column_in_window(format().column_window, m) || !span.contains(pose_time_s)) return std::nullopt;
+    return LocatedColumn{poses.at(pose_time_s), time_s - clock.pose_origin_s};
+  }
+
+  // Columns [first, last) of frame k located into columns. Returns the columns in the window that
+  // had no pose.
   size_t locate_columns(uint64_t frame, int first, int last, const PoseSpan& span, FrameColumns& columns) const {
-    const double frame_pose_time_s = clock.column_pose_time_s(frame, 0);
     size_t unposed = 0;
     for (int m = first; m < last; ++m) {
       const auto column = static_cast<size_t>(m);
-      const double time_s = clock.column_pose_time_s(frame, m);
-      const double pose_time_s = per_column_poses ? time_s : frame_pose_time_s;
-      const bool in_window = column_in_window(format().column_window, m);
-      columns.observed[column] = in_window && span.contains(pose_time_s);
-      unposed += in_window && !columns.observed[column];
-      columns.times_s[column] = time_s - clock.pose_origin_s;
-      if (columns.observed[column]) columns.poses[column] = poses.at(pose_time_s);
+      const std::optional<LocatedColumn> located = locate_column(frame, m, span);
+      columns.observed[column] = located.has_value();
+      unposed += !located && column_in_window(format().column_window, m);
+      columns.times_s[column] = clock.column_pose_time_s(frame, m) - clock.pose_origin_s;
+      if (located) columns.poses[column] = located->pose;
     }
     return unposed;
   }
@@ -102,9 +107,10 @@ struct ForwardModel::Impl {
     }
   }
 
-  // Packets [begin, end) whose columns are contiguous, one packet per work item: the worker that
-  // takes a packet carries it through the whole model and hands its bytes on, so packets leave in
-  // parallel with the rest of the frame's casting.
+  // Packets [begin, end) whose columns are contiguous, in pieces of consecutive packets, a piece
+  // per work item: the worker that takes a piece walks it packet by packet through the whole model
+  // and hands each packet's bytes on, so packets leave in parallel with the rest of the frame's
+  // casting.
   size_t render_run(uint64_t frame, size_t begin, size_t end, EncodedFrame& out, const PacketReady& ready) const {
     const int cpp = columns_per_packet();
     assert(firsts[end - 1] + cpp - firsts[begin] == static_cast<int>(end - begin) * cpp);
@@ -113,35 +119,52 @@ struct ForwardModel::Impl {
     out.columns.frame_index = frame;
     const PoseSpan span = poses.span();  // one answer for the whole run: a live span may grow meanwhile
     const PacketHeader header = header_of(frame);
+    const std::vector<WorkPiece> pieces = guided_pieces(static_cast<int>(end - begin), pool.size());
     std::atomic<size_t> unposed{0};
-    pool.run(static_cast<int>(end - begin), [&](int worker, int item) {
-      const int first = firsts[begin] + item * cpp;
-      Scratch& s = scratch[static_cast<size_t>(worker)];
-      unposed.fetch_add(render_packet(frame, first, span, out, s), std::memory_order_relaxed);
-      const int index = index_of_first[static_cast<size_t>(first / cpp)];
-      packets.encode(header, out.scan, first, slot(out, static_cast<size_t>(index)));
-      if (ready) ready(static_cast<size_t>(index));
+    pool.run(static_cast<int>(pieces.size()), [&](int worker, int item) {
+      const WorkPiece piece = pieces[static_cast<size_t>(item)];
+      const int first = firsts[begin] + piece.first * cpp;
+      const size_t missed = render_piece(
+          frame, first, piece.size, span, out, scratch[static_cast<size_t>(worker)], [&](int packet_first) {
+            const int index = index_of_first[static_cast<size_t>(packet_first / cpp)];
+            packets.encode(header, out.scan, packet_first, slot(out, static_cast<size_t>(index)));
+            if (ready) ready(static_cast<size_t>(index));
+          });
+      unposed.fetch_add(missed, std::memory_order_relaxed);
     });
     return unposed.load();
   }
 
-  // The columns of the packet that starts at column `first`, through the forward model: where
-  // each was observed from, its timestamp and status, the cast (all its columns before any goes
-  // through the chain: Embree's traversal and the chain's tables each stay in cache across the
-  // packet instead of evicting each other column by column), the effect chain, protocol units.
-  // Returns the columns in the window that had no pose.
-  size_t render_packet(uint64_t frame, int first, const PoseSpan& span, EncodedFrame& out, Scratch& s) const {
-    const int last = first + columns_per_packet();
-    const size_t unposed = locate_columns(frame, first, last, span, out.columns);
-    stamp_columns(frame, first, last, &out.columns.observed, out.scan);
-    cast.cast(out.columns, first, last, s.block);
-    for (int m = first; m < last; ++m) {
-      if (!out.columns.observed[static_cast<size_t>(m)]) {  // 6.4: zero pixels
-        encoder.clear(m, out.scan);
-        continue;
+  // `count` consecutive packets from column `first`, through the forward model one after the
+  // other: where each column was observed from, its timestamp and status, the cast (a packet's
+  // columns together, the next packet's cast before this one's edge partners are chosen: its first
+  // column is this one's neighbour), the effect chain and protocol units, then done(the packet's
+  // first column). Returns the columns in the window that had no pose.
+  size_t render_piece(uint64_t frame, int first, int count, const PoseSpan& span, EncodedFrame& out, Scratch& s,
+                      const std::function<void(int)>& done) const {
+    const int cpp = columns_per_packet();
+    const ColumnLocator locate = [&](int m) { return locate_column(frame, m, span); };
+    const auto prepare = [&](int begin) {
+      const size_t missed = locate_columns(frame, begin, begin + cpp, span, out.columns);
+      stamp_columns(frame, begin, begin + cpp, &out.columns.observed, out.scan);
+      return missed;
+    };
+    size_t unposed = prepare(first);
+    cast.start(out.columns, first, first + cpp, locate, s.walk);
+    for (int k = 0; k < count; ++k) {
+      const int begin = first + k * cpp, end = begin + cpp;
+      const bool last = k + 1 == count;
+      if (!last) unposed += prepare(end);
+      const CastStage::Block& block = cast.advance(out.columns, last ? end : end + cpp, locate, s.walk);
+      for (int m = begin; m < end; ++m) {
+        if (!out.columns.observed[static_cast<size_t>(m)]) {  // 6.4: zero pixels
+          encoder.clear(m, out.scan);
+          continue;
+        }
+        render.chain.simulate(block.column(m), cast.context(out.columns, m), s.measured);
+        encoder.write(s.measured, m, out.scan);
       }
-      render.chain.simulate(s.block.column(m), cast.context(out.columns, m), s.measured);
-      encoder.write(s.measured, m, out.scan);
+      done(begin);
     }
     return unposed;
   }

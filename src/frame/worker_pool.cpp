@@ -93,4 +93,14 @@ void WorkerPool::run(int count, const std::function<void(int worker, int item)>&
   if (run.error) std::rethrow_exception(run.error);
 }
 
+std::vector<WorkPiece> guided_pieces(int count, int workers) {
+  std::vector<WorkPiece> pieces;
+  for (int first = 0; first < count;) {
+    const int size = std::max(1, (count - first) / (2 * std::max(1, workers)));
+    pieces.push_back({first, size});
+    first += size;
+  }
+  return pieces;
+}
+
 }  // namespace lidartwin

@@ -1,11 +1,15 @@
 #pragma once
-// The forward model's first stage, one block of a frame's columns at a time: each observed column's
-// beams cast from its own pose, E6's edge partners, and the context each column's effects see.
+// The forward model's first stage, a walk along consecutive blocks of a frame's columns: each
+// observed column's beams cast from its own pose, E6's edge partners from the columns beside it
+// (the next block's own cast), and the context each column's effects see.
 // Everything that models pixels calls it: the renderer (`record`, `serve`) simulates the effect
 // chain on what it casts, the analysis (`compare`, `--diagnose`, `fit`) predicts it. One function,
 // so that the two cannot drift: which columns are cast, from where, how far, which neighbours are
 // partners, which time drives E12.
+#include <array>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -28,6 +32,15 @@ struct FrameColumns {
   std::vector<double> times_s;    // [W] since the sensor's clock (or the capture) began: E12; empty: 0
 };
 
+// Where a column was observed from and when (the caller's own rule for its columns), for a column
+// beside a block: the same answer the block that holds it gets.
+struct LocatedColumn {
+  Pose pose;            // world_from_sensor
+  double time_s = 0.0;  // as FrameColumns::times_s
+};
+// Column m of the frame (0 <= m < width): located, or nullopt when it was not observed.
+using ColumnLocator = std::function<std::optional<LocatedColumn>(int m)>;
+
 class CastStage {
  public:
   // What the cast is for. kSimulate casts each column from the pose the chain moves it to (E11, the
@@ -44,29 +57,50 @@ class CastStage {
   CastStage(const CastStage&) = delete;  // its caster refers to its geometry
   CastStage& operator=(const CastStage&) = delete;
 
-  // One worker's buffers for blocks of up to `columns` columns, reused block after block.
+  // One block of a frame's columns as cast: each observed column's returns, with edge partners
+  // once the walk has passed it.
   class Block {
    public:
     Block(size_t columns, size_t rows);
-    // Column m's ideal returns after cast() (m in the block; observed columns only).
+    // Column m's ideal returns (m in the block; observed columns only).
     std::span<const IdealReturn> column(int m) const { return ideal_[static_cast<size_t>(m - begin_)]; }
+    int begin() const { return begin_; }
+    int end() const { return end_; }
 
    private:
     friend class CastStage;
-    int begin_ = 0;
+    int begin_ = 0, end_ = 0;
     std::vector<std::vector<IdealReturn>> ideal_;  // [column of the block][row]
     std::vector<IdealReturn> before_, after_;      // the columns beside the block, for edge partners
-    std::vector<ColumnCaster::Column> cast_;       // the block's observed columns, cast together
-    std::vector<Pose> moved_;                      // their poses moved by E11, when the chain moves them
+    bool has_before_ = false;
+    std::vector<ColumnCaster::Column> cast_;  // the block's observed columns, cast together
+    std::vector<Pose> moved_;                 // their poses moved by E11, when the chain moves them
+    Pose beside_pose_;                        // a column cast beside the block
   };
-  Block make_block(size_t columns) const { return Block(columns, static_cast<size_t>(geometry_.rows())); }
 
-  // Casts the observed columns of [begin, end) of one frame (at most the block's width, within the
-  // frame) into block, all of them before any partner is chosen. Unobserved columns are not cast
-  // and are no one's partner; the columns just beyond the block are cast again from the pose of
-  // the block's column beside them (a column's time apart: the same place; not moved by E11, whose
-  // jitter between neighbours is far below a depth step), so that a block needs no other block.
-  void cast(const FrameColumns& columns, int begin, int end, Block& block) const;
+  // One worker's walk along consecutive blocks of one frame, reused walk after walk: the block
+  // being finished and the next, cast ahead, whose first column is the finished block's right
+  // neighbour. A column beside a block is so cast once, by the block that holds it, and only a
+  // walk's two ends cast a neighbour of their own.
+  class Walk {
+   public:
+    Walk(size_t columns, size_t rows) : blocks_{Block(columns, rows), Block(columns, rows)} {}
+
+   private:
+    friend class CastStage;
+    std::array<Block, 2> blocks_;
+    size_t current_ = 0;
+  };
+  Walk make_walk(size_t block_columns) const { return Walk(block_columns, static_cast<size_t>(geometry_.rows())); }
+
+  // Starts a walk at the block [begin, end) of one frame (at most the walk's block width): casts its
+  // observed columns. `columns` must hold the block's columns already; `locate` answers for the
+  // columns beside the walk's ends.
+  void start(const FrameColumns& columns, int begin, int end, const ColumnLocator& locate, Walk& walk) const;
+  // Casts the walk's next block [end of the current, next_end) (next_end == the current block's
+  // end: the walk ends here), then finds the current block's edge partners and returns it, final
+  // until the next call. The columns of the next block must be in `columns` before the call.
+  const Block& advance(const FrameColumns& columns, int next_end, const ColumnLocator& locate, Walk& walk) const;
 
   // What column m's effects see: the wire's context, with the column's frame, measurement id and time.
   ColumnContext context(const FrameColumns& columns, int m) const;
@@ -75,7 +109,15 @@ class CastStage {
   float reach_m() const { return caster_.max_range_m(); }
 
  private:
-  void find_partners(const FrameColumns& columns, int begin, int end, Block& block) const;
+  void cast_block(const FrameColumns& columns, int begin, int end, Block& block) const;
+  // The returns of column `beside` (just before or after the block), cast into `out` where the
+  // block's edge column hit: from its own pose when it lies in the frame and was observed (none
+  // when not observed), from the edge column's when it lies in the next or previous frame.
+  std::span<const IdealReturn> cast_beside(const FrameColumns& columns, int beside, const ColumnLocator& locate,
+                                           Block& block, std::vector<IdealReturn>& out) const;
+  Pose cast_pose(const Pose& pose, uint64_t frame, int m, double time_s) const;
+  ColumnContext context_at(uint64_t frame, int m, double time_s) const;
+  void find_partners(const FrameColumns& columns, Block& block, std::span<const IdealReturn> right) const;
 
   BeamGeometry geometry_;
   const EffectChain& chain_;

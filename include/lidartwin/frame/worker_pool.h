@@ -25,6 +25,16 @@ namespace lidartwin {
 // Leaves any real-time scheduling policy the calling thread inherited and sets its nice value.
 void run_at_normal_priority(int nice);
 
+// `count` consecutive items cut into pieces for `workers` workers, long ones first and shrinking to
+// single items (guided self-scheduling): a worker that walks a piece shares work between its
+// neighbouring items (the cast stage's walk casts the columns beside a piece only at its ends), and
+// the short last pieces let the workers finish together.
+struct WorkPiece {
+  int first = 0;
+  int size = 0;
+};
+std::vector<WorkPiece> guided_pieces(int count, int workers);
+
 class WorkerPool {
  public:
   // threads: total including a calling thread; 0 = std::thread::hardware_concurrency().
