@@ -441,7 +441,7 @@ bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedCo
     };
     const int first = piece.first * per_packet;
     prepare(first);
-    cast.start(s.columns, first, first + per_packet, locate, s.walk);
+    cast.start(s.columns, first, first + per_packet, s.walk);
     for (int k = 0; k < piece.size; ++k) {
       const int begin = first + k * per_packet, end = begin + per_packet;
       const bool last = k + 1 == piece.size;

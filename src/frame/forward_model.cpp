@@ -150,7 +150,7 @@ struct ForwardModel::Impl {
       return missed;
     };
     size_t unposed = prepare(first);
-    cast.start(out.columns, first, first + cpp, locate, s.walk);
+    cast.start(out.columns, first, first + cpp, s.walk);
     for (int k = 0; k < count; ++k) {
       const int begin = first + k * cpp, end = begin + cpp;
       const bool last = k + 1 == count;

@@ -72,10 +72,11 @@ class CastStage {
     int begin_ = 0, end_ = 0;
     std::vector<std::vector<IdealReturn>> ideal_;  // [column of the block][row]
     std::vector<IdealReturn> before_, after_;      // the columns beside the block, for edge partners
-    bool has_before_ = false;
-    std::vector<ColumnCaster::Column> cast_;  // the block's observed columns, cast together
-    std::vector<Pose> moved_;                 // their poses moved by E11, when the chain moves them
-    Pose beside_pose_;                        // a column cast beside the block
+    bool has_before_ = false;                      // before_ holds the column before the block
+    bool before_pending_ = false;                  // the column before is still to be cast
+    std::vector<ColumnCaster::Column> cast_;       // the block's observed columns, cast together
+    std::vector<Pose> moved_;                      // their poses moved by E11, when the chain moves them
+    Pose before_pose_, after_pose_;                // of the columns cast beside the block
   };
 
   // One worker's walk along consecutive blocks of one frame, reused walk after walk: the block
@@ -94,12 +95,12 @@ class CastStage {
   Walk make_walk(size_t block_columns) const { return Walk(block_columns, static_cast<size_t>(geometry_.rows())); }
 
   // Starts a walk at the block [begin, end) of one frame (at most the walk's block width): casts its
-  // observed columns. `columns` must hold the block's columns already; `locate` answers for the
-  // columns beside the walk's ends.
-  void start(const FrameColumns& columns, int begin, int end, const ColumnLocator& locate, Walk& walk) const;
+  // observed columns. `columns` must hold the block's columns already.
+  void start(const FrameColumns& columns, int begin, int end, Walk& walk) const;
   // Casts the walk's next block [end of the current, next_end) (next_end == the current block's
   // end: the walk ends here), then finds the current block's edge partners and returns it, final
-  // until the next call. The columns of the next block must be in `columns` before the call.
+  // until the next call. The columns of the next block must be in `columns` before the call;
+  // `locate` answers for the columns beside the walk's two ends (any column of the frame).
   const Block& advance(const FrameColumns& columns, int next_end, const ColumnLocator& locate, Walk& walk) const;
 
   // What column m's effects see: the wire's context, with the column's frame, measurement id and time.
@@ -110,11 +111,11 @@ class CastStage {
 
  private:
   void cast_block(const FrameColumns& columns, int begin, int end, Block& block) const;
-  // The returns of column `beside` (just before or after the block), cast into `out` where the
-  // block's edge column hit: from its own pose when it lies in the frame and was observed (none
-  // when not observed), from the edge column's when it lies in the next or previous frame.
-  std::span<const IdealReturn> cast_beside(const FrameColumns& columns, int beside, const ColumnLocator& locate,
-                                           Block& block, std::vector<IdealReturn>& out) const;
+  // How column `beside` (just before or after the block) is cast into the block's before_ or
+  // after_, where the block's edge column hit: from its own pose when it lies in the frame, from the
+  // edge column's when it lies in the next or previous frame. False: it is no one's partner.
+  bool plan_beside(const FrameColumns& columns, int beside, const ColumnLocator& locate, Block& block,
+                   ColumnCaster::Column& column) const;
   Pose cast_pose(const Pose& pose, uint64_t frame, int m, double time_s) const;
   ColumnContext context_at(uint64_t frame, int m, double time_s) const;
   void find_partners(const FrameColumns& columns, Block& block, std::span<const IdealReturn> right) const;
