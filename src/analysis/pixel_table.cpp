@@ -385,8 +385,8 @@ class ItemProgress {
 // measurement, ideal return and prediction written to the table. The capture's frames go through
 // the forward model's cast stage as `record` casts them, a walk along consecutive packets per work
 // item: frame f's valid columns are its observed ones, each posed at its own timestamp, its time
-// (E12) counted from the capture's first observed column. Returns whether the chain predicted no spread for a
-// pixel it detects.
+// (E12) counted from the capture's first observed column. Returns whether the chain predicted no
+// spread for a pixel it detects.
 bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedColumn>& observed, const CastStage& cast,
                       uint64_t first_stamp, PixelTable& table, WorkerPool& pool) {
   const LidarDataFormat& format = setup.capture.metadata.format;
@@ -439,15 +439,8 @@ bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedCo
         s.columns.times_s[column] = located->time_s;
       }
     };
-    const int first = piece.first * per_packet;
-    prepare(first);
-    cast.start(s.columns, first, first + per_packet, s.walk);
-    for (int k = 0; k < piece.size; ++k) {
-      const int begin = first + k * per_packet, end = begin + per_packet;
-      const bool last = k + 1 == piece.size;
-      if (!last) prepare(end);
-      const CastStage::Block& block = cast.advance(s.columns, last ? end : end + per_packet, locate, s.walk);
-      for (int m = begin; m < end; ++m) {
+    const auto predict = [&](const CastStage::Block& block) {
+      for (int m = block.begin(); m < block.begin() + per_packet; ++m) {
         if (!s.columns.observed[static_cast<size_t>(m)]) continue;
         const ColumnContext context = cast.context(s.columns, m);
         const std::span<const IdealReturn> ideal = block.column(m);
@@ -465,7 +458,8 @@ bool cast_and_predict(const PixelTableSetup& setup, const std::vector<ObservedCo
           table.set_prediction(p, prediction, model);
         }
       }
-    }
+    };
+    cast.walk(s.columns, piece.first * per_packet, piece.size, per_packet, locate, s.walk, prepare, predict);
     progress.item_done();
   });
   return no_spread;

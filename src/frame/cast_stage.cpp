@@ -76,6 +76,17 @@ bool CastStage::plan_beside(const FrameColumns& columns, int beside, const Colum
   return true;
 }
 
+void CastStage::walk(FrameColumns& columns, int first, int count, int width, const ColumnLocator& locate, Walk& walk,
+                     const std::function<void(int)>& prepare, const std::function<void(const Block&)>& done) const {
+  prepare(first);
+  start(columns, first, first + width, walk);
+  for (int k = 1; k <= count; ++k) {
+    const int end = first + k * width;
+    if (k < count) prepare(end);
+    done(advance(columns, k < count ? end + width : end, locate, walk));
+  }
+}
+
 void CastStage::start(const FrameColumns& columns, int begin, int end, Walk& walk) const {
   Block& block = walk.blocks_[walk.current_];
   cast_block(columns, begin, end, block);

@@ -124,12 +124,8 @@ struct ForwardModel::Impl {
     pool.run(static_cast<int>(pieces.size()), [&](int worker, int item) {
       const WorkPiece piece = pieces[static_cast<size_t>(item)];
       const int first = firsts[begin] + piece.first * cpp;
-      const size_t missed = render_piece(
-          frame, first, piece.size, span, out, scratch[static_cast<size_t>(worker)], [&](int packet_first) {
-            const int index = index_of_first[static_cast<size_t>(packet_first / cpp)];
-            packets.encode(header, out.scan, packet_first, slot(out, static_cast<size_t>(index)));
-            if (ready) ready(static_cast<size_t>(index));
-          });
+      const size_t missed =
+          render_piece(frame, first, piece.size, span, header, out, scratch[static_cast<size_t>(worker)], ready);
       unposed.fetch_add(missed, std::memory_order_relaxed);
     });
     return unposed.load();
@@ -138,25 +134,20 @@ struct ForwardModel::Impl {
   // `count` consecutive packets from column `first`, through the forward model one after the
   // other: where each column was observed from, its timestamp and status, the cast (a packet's
   // columns together, the next packet's cast before this one's edge partners are chosen: its first
-  // column is this one's neighbour), the effect chain and protocol units, then done(the packet's
-  // first column). Returns the columns in the window that had no pose.
-  size_t render_piece(uint64_t frame, int first, int count, const PoseSpan& span, EncodedFrame& out, Scratch& s,
-                      const std::function<void(int)>& done) const {
+  // column is this one's neighbour), the effect chain and protocol units, the packet's bytes, then
+  // ready(its index). Returns the columns in the window that had no pose.
+  size_t render_piece(uint64_t frame, int first, int count, const PoseSpan& span, const PacketHeader& header,
+                      EncodedFrame& out, Scratch& s, const PacketReady& ready) const {
     const int cpp = columns_per_packet();
     const ColumnLocator locate = [&](int m) { return locate_column(frame, m, span); };
+    size_t unposed = 0;
     const auto prepare = [&](int begin) {
-      const size_t missed = locate_columns(frame, begin, begin + cpp, span, out.columns);
+      unposed += locate_columns(frame, begin, begin + cpp, span, out.columns);
       stamp_columns(frame, begin, begin + cpp, &out.columns.observed, out.scan);
-      return missed;
     };
-    size_t unposed = prepare(first);
-    cast.start(out.columns, first, first + cpp, s.walk);
-    for (int k = 0; k < count; ++k) {
-      const int begin = first + k * cpp, end = begin + cpp;
-      const bool last = k + 1 == count;
-      if (!last) unposed += prepare(end);
-      const CastStage::Block& block = cast.advance(out.columns, last ? end : end + cpp, locate, s.walk);
-      for (int m = begin; m < end; ++m) {
+    cast.walk(out.columns, first, count, cpp, locate, s.walk, prepare, [&](const CastStage::Block& block) {
+      const int begin = block.begin();
+      for (int m = begin; m < begin + cpp; ++m) {
         if (!out.columns.observed[static_cast<size_t>(m)]) {  // 6.4: zero pixels
           encoder.clear(m, out.scan);
           continue;
@@ -164,8 +155,10 @@ struct ForwardModel::Impl {
         render.chain.simulate(block.column(m), cast.context(out.columns, m), s.measured);
         encoder.write(s.measured, m, out.scan);
       }
-      done(begin);
-    }
+      const int index = index_of_first[static_cast<size_t>(begin / cpp)];
+      packets.encode(header, out.scan, begin, slot(out, static_cast<size_t>(index)));
+      if (ready) ready(static_cast<size_t>(index));
+    });
     return unposed;
   }
 

@@ -64,8 +64,7 @@ class CastStage {
     Block(size_t columns, size_t rows);
     // Column m's ideal returns (m in the block; observed columns only).
     std::span<const IdealReturn> column(int m) const { return ideal_[static_cast<size_t>(m - begin_)]; }
-    int begin() const { return begin_; }
-    int end() const { return end_; }
+    int begin() const { return begin_; }  // its first column
 
    private:
     friend class CastStage;
@@ -94,14 +93,13 @@ class CastStage {
   };
   Walk make_walk(size_t block_columns) const { return Walk(block_columns, static_cast<size_t>(geometry_.rows())); }
 
-  // Starts a walk at the block [begin, end) of one frame (at most the walk's block width): casts its
-  // observed columns. `columns` must hold the block's columns already.
-  void start(const FrameColumns& columns, int begin, int end, Walk& walk) const;
-  // Casts the walk's next block [end of the current, next_end) (next_end == the current block's
-  // end: the walk ends here), then finds the current block's edge partners and returns it, final
-  // until the next call. The columns of the next block must be in `columns` before the call;
-  // `locate` answers for the columns beside the walk's two ends (any column of the frame).
-  const Block& advance(const FrameColumns& columns, int next_end, const ColumnLocator& locate, Walk& walk) const;
+  // Walks `count` blocks of `width` columns of one frame from column `first` (width at most the
+  // walk's block width): prepare(begin) puts the columns of the block starting at `begin` in
+  // `columns` (observed, pose, time), done(block) takes each block in order once its edge partners
+  // are found (final until done returns). `locate` answers for the columns beside the walk's two
+  // ends (any column of the frame, as prepare would).
+  void walk(FrameColumns& columns, int first, int count, int width, const ColumnLocator& locate, Walk& walk,
+            const std::function<void(int begin)>& prepare, const std::function<void(const Block&)>& done) const;
 
   // What column m's effects see: the wire's context, with the column's frame, measurement id and time.
   ColumnContext context(const FrameColumns& columns, int m) const;
@@ -110,6 +108,10 @@ class CastStage {
   float reach_m() const { return caster_.max_range_m(); }
 
  private:
+  // The walk's steps: its first block cast; the next block cast (next_end == the current block's
+  // end: none) and the current one's partners found.
+  void start(const FrameColumns& columns, int begin, int end, Walk& walk) const;
+  const Block& advance(const FrameColumns& columns, int next_end, const ColumnLocator& locate, Walk& walk) const;
   void cast_block(const FrameColumns& columns, int begin, int end, Block& block) const;
   // How column `beside` (just before or after the block) is cast into the block's before_ or
   // after_, where the block's edge column hit: from its own pose when it lies in the frame, from the
