@@ -30,8 +30,8 @@ ColumnContext CastStage::context(const FrameColumns& columns, int m) const {
   return context_at(columns.frame_index, m, columns.times_s.empty() ? 0.0 : columns.times_s[static_cast<size_t>(m)]);
 }
 
-Pose CastStage::cast_pose(const Pose& pose, uint64_t frame, int m, double time_s) const {
-  return moves_ ? chain_.moved_pose(pose, context_at(frame, m, time_s)) : pose;
+Pose CastStage::cast_pose(const Pose& pose, const ColumnContext& context) const {
+  return moves_ ? chain_.moved_pose(pose, context) : pose;
 }
 
 void CastStage::cast_block(const FrameColumns& columns, int begin, int end, Block& block) const {
@@ -43,9 +43,7 @@ void CastStage::cast_block(const FrameColumns& columns, int begin, int end, Bloc
     const auto column = static_cast<size_t>(m);
     if (!columns.observed[column]) continue;
     const Pose* pose = &columns.poses[column];
-    if (moves_)
-      pose = &(block.moved_[static_cast<size_t>(m - begin)] =
-                   cast_pose(*pose, columns.frame_index, m, context(columns, m).time_s));
+    if (moves_) pose = &(block.moved_[static_cast<size_t>(m - begin)] = cast_pose(*pose, context(columns, m)));
     block.cast_.push_back({m, pose, block.ideal_[static_cast<size_t>(m - begin)]});
   }
   caster_.cast(block.cast_);
@@ -67,7 +65,7 @@ bool CastStage::plan_beside(const FrameColumns& columns, int beside, const Colum
   if (beside >= 0 && beside < width) {
     const std::optional<LocatedColumn> located = locate(beside);
     if (!located) return false;
-    pose = cast_pose(located->pose, columns.frame_index, beside, located->time_s);
+    pose = cast_pose(located->pose, context_at(columns.frame_index, beside, located->time_s));
   } else {
     pose = columns.poses[static_cast<size_t>(edge)];
     beside = (beside + width) % width;

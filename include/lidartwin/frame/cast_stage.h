@@ -118,7 +118,7 @@ class CastStage {
   // edge column's when it lies in the next or previous frame. False: it is no one's partner.
   bool plan_beside(const FrameColumns& columns, int beside, const ColumnLocator& locate, Block& block,
                    ColumnCaster::Column& column) const;
-  Pose cast_pose(const Pose& pose, uint64_t frame, int m, double time_s) const;
+  Pose cast_pose(const Pose& pose, const ColumnContext& context) const;  // moved by E11 when simulating
   ColumnContext context_at(uint64_t frame, int m, double time_s) const;
   void find_partners(const FrameColumns& columns, Block& block, std::span<const IdealReturn> right) const;
 
