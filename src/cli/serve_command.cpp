@@ -280,8 +280,9 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   sub->add_option("--coalesce-us", flags->coalesce_us,
-                  "while the host's CPUs are contended, send the packets due within this long of each other "
-                  "together, the earlier ones held back (0 = one wake-up per packet)")
+                  "while the host's CPUs are contended and casting falls behind, send the packets due within this "
+                  "long of each other together, the earlier ones held back; doubling each second casting still "
+                  "falls behind, up to 8 times (0 = one wake-up per packet)")
       ->check(CLI::Range(0, 10000))
       ->capture_default_str();
   sub->add_option("--contention", flags->contention,

@@ -42,7 +42,8 @@ ApiResponse get_telemetry(Sensor& sensor, const ApiRequest&) {
         {"send_lateness_p50_us", stats.lateness_p50_us},
         {"send_lateness_p99_us", stats.lateness_p99_us},
         {"max_lateness_us", stats.max_lateness_us},
-        {"render_load", stats.render_load}}},
+        {"render_load", stats.render_load},
+        {"coalesce_window_us", stats.coalesce_window_us}}},
   });
 }
 

@@ -2,6 +2,7 @@
 // the host cannot keep up (rate-limited: one line per kWarningInterval at most).
 #include <spdlog/spdlog.h>
 
+#include "lidartwin/streamer/coalescing_window.h"
 #include "lidartwin/streamer/streamer.h"
 #include "streamer/host_load.h"
 #include "streamer/stream_counters.h"
@@ -31,6 +32,7 @@ void Streamer::arm_stats_timer() {
 void Streamer::report_stats() {
   follow_host_load();
   StreamStats& stats = counters_->stats;
+  stats.coalesce_window_us = static_cast<double>(coalesce_ns_) / 1000.0;
   const uint64_t busy_ns = session_ ? session_->take_render_busy_ns() : 0;
   stats.columns_without_pose += session_ ? session_->take_unposed_columns() : 0;
   stats.recast_packets += session_ ? session_->take_recasts() : 0;
@@ -50,8 +52,9 @@ void Streamer::report_stats() {
 
 // The send clock spins to each deadline only while the host has CPU to spare. While it has not,
 // and casting has fallen behind (a render stall since the last look), the send clock coalesces
-// its wake-ups, trading up to coalesce_us of punctuality for the CPU casting lacks, until the host
-// is free again (a rig of 16 on a contended host that keeps up stays punctual).
+// its wake-ups, trading punctuality for the CPU casting lacks (coalescing_window.h: the window
+// widens while casting still falls behind), until the host is free again (a rig of 16 on a
+// contended host that keeps up stays punctual).
 void Streamer::follow_host_load() {
   using Contention = StreamerOptions::Contention;
   const uint64_t stalls = counters_->stats.render_stalls;
@@ -62,12 +65,15 @@ void Streamer::follow_host_load() {
                                                                   : options_.contention == Contention::kAlways;
   spin_ns_ = contended ? 0 : int64_t{options_.spin_us} * 1000;
   const bool coalesce = contended && (coalesce_ns_ > 0 || stalled || options_.contention == Contention::kAlways);
-  const int64_t window = coalesce ? int64_t{options_.coalesce_us} * 1000 : 0;
+  const int64_t window = next_coalescing_window(coalesce_ns_, int64_t{options_.coalesce_us} * 1000, coalesce, stalled);
   if (window > 0 && coalesce_ns_ == 0) {
     spdlog::info(
         "streamer{}: {}: the send clock wakes once for the packets due within {} us of each other (--coalesce-us), "
         "holding the earlier ones back",
         tag_, stalled ? "casting fell behind on a contended host" : "--contention always", options_.coalesce_us);
+  } else if (window > coalesce_ns_ && coalesce_ns_ > 0) {
+    spdlog::debug("streamer{}: casting still falls behind: the send clock wakes once for the packets due within {} us",
+                  tag_, window / 1000);
   }
   coalesce_ns_ = window;
 }

@@ -53,6 +53,7 @@ struct Streams {
   std::vector<Arrival> lidar;
   std::vector<Arrival> imu;
   size_t invalid_columns = 0;
+  double coalesce_window_us = -1;  // as the daemon's telemetry reports it at the end
 };
 
 Streams receive(UdpSocket& lidar, UdpSocket& imu, const Metadata& metadata, std::chrono::milliseconds duration) {
@@ -95,7 +96,9 @@ Streams stream_with(const std::string& contention) {
   const Metadata metadata = parse(sdk016_init_client(http, request));
   // The stream starts a quarter second after the reinit; what came before was the old config's.
   receive(lidar, imu, metadata, std::chrono::milliseconds(400));
-  return receive(lidar, imu, metadata, std::chrono::milliseconds(1500));
+  Streams streams = receive(lidar, imu, metadata, std::chrono::milliseconds(1500));
+  streams.coalesce_window_us = http.get_json("sensor/telemetry").at("lidartwin").at("coalesce_window_us").get<double>();
+  return streams;
 }
 
 // Share of consecutive lidar packets that arrived within kPairGapNs of the one before.
@@ -135,6 +138,7 @@ TEST(CoalescedSends, PacketsComeInPairsNoneBeforeItsTimeNoneLostAndImuRidesAlong
   for (const Arrival& a : streams.lidar) held += a.arrived_ns - a.timestamp_ns > kPacketPeriodNs / 2;
   EXPECT_GT(static_cast<double>(held) / static_cast<double>(streams.lidar.size()), 0.35);
   EXPECT_GT(paired_share(streams.lidar), 0.35) << "one wake-up for every two packets";
+  EXPECT_EQ(streams.coalesce_window_us, 2000.0) << "casting keeps up: the window stays at --coalesce-us";
 
   // IMU: every sample in order, none early, and most within the window after their time (they go
   // with the lidar wake-up after them).
@@ -157,6 +161,7 @@ TEST(CoalescedSends, NeverMeansOneWakeUpAPacket) {
   // On an idle host none come in pairs; a busy host that delays a wake-up past the next deadline
   // makes a few.
   EXPECT_LT(paired_share(streams.lidar), 0.2);
+  EXPECT_EQ(streams.coalesce_window_us, 0.0);
 }
 
 }  // namespace

@@ -37,6 +37,9 @@ struct StreamStats {
   double lateness_p50_us = 0.0;  // send lateness (sent - due) of every packet sent so far
   double lateness_p99_us = 0.0;
   double render_load = 0.0;  // render time / real time over the last second (1.0 = saturated)
+  // The send clock's coalescing window now (StreamerOptions::coalesce_us, coalescing_window.h), 0
+  // while it wakes once per packet.
+  double coalesce_window_us = 0.0;
   // Live poses (docs/live-poses.md): columns in the window sent unobserved for want of a pose,
   // packets withheld for the same reason (timeout policy "standby"), and the latency from a
   // pose's arrival to the first packet cast with it; packets cast a second time because a pose

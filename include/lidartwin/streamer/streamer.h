@@ -61,8 +61,10 @@ struct StreamerOptions {
   // packets due within this much of each other, holding the earlier ones back (never sending one
   // before its time), and sends the IMU samples due by then with them: one wake-up serves two
   // packets of a 1024x10 stream, and a wake-up costs ~100 us of CPU on a VM (the issue-26 cliff:
-  // a dozen daemons' send clocks took the CPU their casting needed). 0: one wake-up per packet
-  // always. Not with cast_ahead_ms, whose packets wait for the freshest pose.
+  // a dozen daemons' send clocks took the CPU their casting needed). While casting still falls
+  // behind, the window doubles once a second up to 8 times this, and halves back once it keeps
+  // up. 0: one wake-up per packet always. Not with cast_ahead_ms, whose packets wait for the
+  // freshest pose.
   int coalesce_us = 2000;
   // Whether the host counts as contended (no spin, coalesced sends): kAuto follows the host's CPU
   // pressure (streamer/host_load.h); a user who knows better (a CPU quota PSI does not show, a
@@ -156,7 +158,7 @@ class Streamer {
   std::unique_ptr<streamer_detail::GroundTruth> ground_truth_;  // with record_dir
   asio::steady_timer stats_timer_;
   int64_t spin_ns_;          // options_.spin_us, or 0 while the host is contended; io thread
-  int64_t coalesce_ns_ = 0;  // options_.coalesce_us while coalescing (follow_host_load), else 0; io thread
+  int64_t coalesce_ns_ = 0;  // the coalescing window (follow_host_load), 0 when not coalescing; io thread
   uint64_t stalls_at_last_look_ = 0;
   mutable std::mutex snapshot_mutex_;
   StreamStats snapshot_;                                     // guarded by snapshot_mutex_
