@@ -5,9 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
-#include <functional>
 #include <future>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -347,61 +345,6 @@ TEST(WorkerPool, ACallerNeverWaitsForAWorkerBusyElsewhere) {
   release.set_value();
   blocked.join();
   EXPECT_EQ(second.get(), 5);
-}
-
-// A rig's sensors cast in turns: at most as many callers as the pool has threads hold one, and
-// the others get theirs soonest due first (among equals, in the order they asked), each when a
-// holder ends its turn.
-TEST(WorkerPool, AtMostSizeCallersCastAtOnceAndTheOthersSoonestDueFirst) {
-  WorkerPool pool(2);
-  std::mutex mutex;
-  std::vector<int> order;  // who got a turn, in order
-  std::atomic<int> holding{0}, most{0};
-  const auto take = [&](int id, int64_t due, std::shared_future<void> until) {
-    const WorkerPool::Turn turn(pool, due);
-    const int now = ++holding;
-    for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {
-    }
-    {
-      std::lock_guard lock(mutex);
-      order.push_back(id);
-    }
-    until.wait();
-    --holding;
-  };
-  // (EXPECT, not ASSERT: every thread must be released and joined, whatever fails.)
-  const auto wait_until = [](const std::function<bool()>& done) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    while (!done() && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
-    return done();
-  };
-  std::promise<void> release_first, release_second, now;
-  now.set_value();
-  const std::shared_future<void> at_once = now.get_future().share();
-  std::vector<std::thread> threads;
-  threads.emplace_back(take, 0, 500, release_first.get_future().share());
-  EXPECT_TRUE(wait_until([&] { return holding.load() == 1; }));
-  threads.emplace_back(take, 1, 500, release_second.get_future().share());
-  EXPECT_TRUE(wait_until([&] { return holding.load() == 2; }));
-  const int64_t due[] = {0, 0, 300, 100, 300};
-  for (int id = 2; id < 5; ++id) {  // each asks once the one before it waits
-    threads.emplace_back(take, id, due[id], at_once);
-    EXPECT_TRUE(wait_until([&] { return pool.waiting_for_turns() == id - 1; }));
-  }
-  {
-    std::lock_guard lock(mutex);
-    EXPECT_EQ(order.size(), 2u) << "a third caller cast while two held their turns";
-  }
-  release_first.set_value();  // 3, 2 and 4 cast one after the other beside 1
-  EXPECT_TRUE(wait_until([&] {
-    std::lock_guard lock(mutex);
-    return order.size() == 5;
-  }));
-  release_second.set_value();
-  for (auto& thread : threads) thread.join();
-  EXPECT_EQ(order, (std::vector<int>{0, 1, 3, 2, 4}));
-  EXPECT_EQ(most.load(), 2);
-  EXPECT_EQ(pool.waiting_for_turns(), 0);
 }
 
 TEST(WorkerPool, RethrowsTheFirstExceptionToItsCaller) {

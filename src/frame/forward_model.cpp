@@ -195,7 +195,6 @@ const SensorClock& ForwardModel::clock() const { return impl_->clock; }
 const BeamGeometry& ForwardModel::geometry() const { return impl_->cast.geometry(); }
 float ForwardModel::cast_range_m() const { return impl_->cast.reach_m(); }
 const std::vector<int>& ForwardModel::packet_columns() const { return impl_->firsts; }
-WorkerPool& ForwardModel::worker_pool() const { return impl_->pool; }
 size_t ForwardModel::packet_size() const { return impl_->packets.lidar_packet_size(); }
 
 EncodedFrame ForwardModel::make_frame_buffer() const {

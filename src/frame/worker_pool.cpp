@@ -93,40 +93,6 @@ void WorkerPool::run(int count, const std::function<void(int worker, int item)>&
   if (run.error) std::rethrow_exception(run.error);
 }
 
-WorkerPool::Turn::Turn(WorkerPool& pool, int64_t due) : pool_(pool) { pool_.take_turn(due); }
-WorkerPool::Turn::~Turn() { pool_.end_turn(); }
-
-void WorkerPool::take_turn(int64_t due) {
-  std::unique_lock lock(turn_mutex_);
-  if (waiting_.empty() && turns_taken_ < size()) {
-    ++turns_taken_;
-    return;
-  }
-  TurnWaiter waiter;
-  waiter.due = due;
-  waiting_.insert(std::upper_bound(waiting_.begin(), waiting_.end(), due,
-                                   [](int64_t d, const TurnWaiter* w) { return d < w->due; }),
-                  &waiter);
-  waiter.woken.wait(lock, [&] { return waiter.granted; });  // end_turn passed its turn on
-}
-
-void WorkerPool::end_turn() {
-  std::lock_guard lock(turn_mutex_);
-  if (waiting_.empty()) {
-    --turns_taken_;
-    return;
-  }
-  TurnWaiter* next = waiting_.front();
-  waiting_.pop_front();
-  next->granted = true;
-  next->woken.notify_one();  // under the lock: the waiter's stack frame outlives this call
-}
-
-int WorkerPool::waiting_for_turns() const {
-  std::lock_guard lock(turn_mutex_);
-  return static_cast<int>(waiting_.size());
-}
-
 std::vector<WorkPiece> guided_pieces(int count, int workers) {
   std::vector<WorkPiece> pieces;
   for (int first = 0; first < count;) {

@@ -139,11 +139,6 @@ void RenderAhead::cast(uint64_t frame, size_t begin, size_t end, size_t copy) {
 void RenderAhead::render_frame(uint64_t frame) {
   for (auto [begin, end] : chunks_) {
     if (abandoned(frame)) return;
-    // In turn for the first packet still in time, which is judged again once the turn is ours.
-    begin = first_in_time(frame, begin, end);
-    std::optional<WorkerPool::Turn> turn;
-    if (begin < end) turn.emplace(model_.worker_pool(), deadline_ns(frame, begin));
-    if (abandoned(frame)) return;
     begin = first_in_time(frame, begin, end);
     if (begin == end) {
       packet_ns_ -= packet_ns_ / 8;  // no cast to measure: let the estimate fall back towards the truth
@@ -168,11 +163,7 @@ void RenderAhead::run_paced() {
       next = {next.frame + 1, 0};
       continue;
     }
-    // As in render_frame: in turn if it is still in time, judged again once the turn is ours.
-    std::optional<WorkerPool::Turn> turn;
-    const auto in_time = [&] { return first_in_time(next.frame, next.index, next.index + 1) == next.index; };
-    if (in_time()) turn.emplace(model_.worker_pool(), deadline_ns(next.frame, next.index));
-    if (turn && in_time()) {
+    if (first_in_time(next.frame, next.index, next.index + 1) == next.index) {
       cast(next.frame, next.index, next.index + 1, 0);
       cast_once.push_back(next);
     } else {

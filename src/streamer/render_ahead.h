@@ -15,9 +15,6 @@
 // packets it can no longer finish in time: they go out blank either way (render stalls), and
 // casting them would make every later packet late too, so that a short shortage of CPU would
 // stall the stream for good. Skipping keeps the stalls in proportion to the CPU that was missing.
-// A rig's sensors each have a worker: they cast in turns (WorkerPool::Turn), at most as many at once
-// as the pool has threads, the packets due soonest first, so that each cast runs at the cores'
-// speed instead of all of them time-slicing each other past their deadlines.
 #include <atomic>
 #include <cstdint>
 #include <memory>

@@ -93,7 +93,6 @@ class ForwardModel {
   // Whether packet `index` of a rendered frame has any observed column.
   bool packet_observed(const EncodedFrame& frame, size_t index) const;
   const PoseSource& poses() const;
-  WorkerPool& worker_pool() const;  // the pool it casts on (a rig's sensors share one)
   std::span<const uint8_t> packet(const EncodedFrame& frame, size_t index) const;
   // When packet `index` of frame k leaves the sensor: its last column's timestamp (protocol doc 1).
   uint64_t packet_timestamp_ns(uint64_t frame, size_t index) const;

@@ -52,35 +52,7 @@ class WorkerPool {
   // the task's own data. Any number of threads may call run at once.
   void run(int count, const std::function<void(int worker, int item)>& task);
 
-  // A turn at casting: while it is held, the caller's runs may use the cores. At most size()
-  // callers hold one at once; the others get theirs soonest due first (`due`: when what the caller
-  // will cast is needed, on any clock all callers share), in the order they asked among equals. A
-  // rig's sensors each have a thread that casts ahead of its send clock: when the host cannot keep
-  // up, 32 of them on 2 cores time-sliced each other until most casts ended after their packets
-  // were due (thrown away). Taking turns, each cast runs at the cores' speed, a sensor that waited
-  // looks again at what it can still finish in time, and the sensor furthest behind is served
-  // first, so all fall behind alike. Callers that never take a turn are not held back.
-  class Turn {
-   public:
-    Turn(WorkerPool& pool, int64_t due);
-    ~Turn();
-    Turn(const Turn&) = delete;
-    Turn& operator=(const Turn&) = delete;
-
-   private:
-    WorkerPool& pool_;
-  };
-  int waiting_for_turns() const;  // callers waiting for a Turn now
-
  private:
-  struct TurnWaiter {
-    int64_t due = 0;
-    std::condition_variable woken;
-    bool granted = false;
-  };
-  void take_turn(int64_t due);
-  void end_turn();
-
   struct Run {
     const std::function<void(int, int)>* task = nullptr;
     int count = 0;
@@ -96,13 +68,8 @@ class WorkerPool {
   std::mutex mutex_;
   std::condition_variable_any wake_;
   std::condition_variable done_;
-  std::deque<Run*> runs_;  // runs whose caller is still draining, oldest first; guarded by mutex_
-  int idle_ = 0;           // workers waiting for a run; guarded by mutex_
-  // Turns (Turn): each waiter is woken alone, when a turn passes to it (waking every waiter
-  // would cost a rig of 32 sensors tens of thousands of wake-ups a second).
-  mutable std::mutex turn_mutex_;
-  int turns_taken_ = 0;                // guarded by turn_mutex_
-  std::deque<TurnWaiter*> waiting_;    // soonest due first, then oldest; guarded by turn_mutex_
+  std::deque<Run*> runs_;              // runs whose caller is still draining, oldest first; guarded by mutex_
+  int idle_ = 0;                       // workers waiting for a run; guarded by mutex_
   std::vector<std::jthread> threads_;  // last: stopped and joined before the members above go
 };
 
