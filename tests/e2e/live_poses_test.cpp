@@ -399,6 +399,22 @@ TEST(LivePosesHttp, ADaemonFlyingATrajectoryHasNoPoseEndpoint) {
   EXPECT_EQ(http.raw_post("/lidartwin/v1/pose", pose_json(1, 1).dump())->status, 404);
 }
 
+// Two complete scans in a row among the first eight while poses come. (Not the first two: on a
+// loaded host the test's own pose sender can fall more than --pose-extrapolate-ms behind, and
+// "standby" then rightly withholds those packets; a daemon that never resumed sends none whole.)
+void expect_complete_scans_in_a_row(UdpSocket& lidar, ScanBatcher& batcher) {
+  std::string seen;  // packets per scan, for the message
+  int in_a_row = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(15);
+  for (int k = 0; k < 8 && in_a_row < 2 && std::chrono::steady_clock::now() < deadline; ++k) {
+    const auto scans = receive_scans(lidar, batcher, 1, std::chrono::seconds(5), "", k == 0);
+    if (scans.empty()) break;
+    in_a_row = scans.front().complete ? in_a_row + 1 : 0;
+    seen += std::to_string(scans.front().packets) + " ";
+  }
+  EXPECT_EQ(in_a_row, 2) << "packets per scan: " << seen;
+}
+
 // Timeout policy "standby": no lidar packet goes out until poses come, none once they stop, and
 // complete scans again once they resume.
 TEST(LivePosesTimeout, StandbySendsNothingWithoutPosesAndResumesWithThem) {
@@ -417,9 +433,7 @@ TEST(LivePosesTimeout, StandbySendsNothingWithoutPosesAndResumesWithThem) {
   {
     RigThread rig(pose_udp_port(daemon.log()), Turn{monotonic_ns()}, false);
     ScanBatcher batcher(metadata.format);
-    const auto scans = receive_scans(lidar, batcher, 2, std::chrono::seconds(10));
-    ASSERT_EQ(scans.size(), 2u);
-    for (const auto& scan : scans) EXPECT_TRUE(scan.complete) << scan.packets << " packets";
+    expect_complete_scans_in_a_row(lidar, batcher);
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the stream stalls
   lidar.drain();
@@ -433,9 +447,7 @@ TEST(LivePosesTimeout, StandbySendsNothingWithoutPosesAndResumesWithThem) {
     // is over.
     RigThread rig(pose_udp_port(daemon.log()), Turn{monotonic_ns()}, false);
     ScanBatcher batcher(metadata.format);
-    const auto scans = receive_scans(lidar, batcher, 3, std::chrono::seconds(10));
-    ASSERT_EQ(scans.size(), 3u);
-    for (size_t k = 1; k < scans.size(); ++k) EXPECT_TRUE(scans[k].complete) << scans[k].packets << " packets";
+    expect_complete_scans_in_a_row(lidar, batcher);
     std::this_thread::sleep_for(std::chrono::milliseconds(1100));
     const json resumed = json::parse(http.raw_get("/lidartwin/v1/pose")->body);
     EXPECT_FALSE(resumed["stalled"].get<bool>()) << resumed.dump(2);
