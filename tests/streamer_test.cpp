@@ -23,6 +23,14 @@ TEST(CoalescingWindow, WidensWhileCastingStillFallsBehindUpToEightTimesTheBase) 
             (std::vector<int64_t>{kBase, 2 * kBase, 4 * kBase, 8 * kBase, 8 * kBase, 8 * kBase}));
 }
 
+// --coalesce-us 10000 (its largest) widens to 20 ms, not 80: held packets stay well within a
+// 20 Hz frame (50 ms), past which the send clock would skip them.
+TEST(CoalescingWindow, NeverWidensPast20Ms) {
+  int64_t window = 0;
+  for (int look = 0; look < 5; ++look) window = next_coalescing_window(window, 10'000'000, true, true);
+  EXPECT_EQ(window, 20'000'000);
+}
+
 TEST(CoalescingWindow, NarrowsBackToTheBaseOnceCastingKeepsUp) {
   EXPECT_EQ(
       windows_over({true, true, true, true, false, false, false, false, true}),

@@ -282,7 +282,7 @@ void setup_serve(CLI::App& app, std::function<int()>& run) {
   sub->add_option("--coalesce-us", flags->coalesce_us,
                   "while the host's CPUs are contended and casting falls behind, send the packets due within this "
                   "long of each other together, the earlier ones held back; doubling each second casting still "
-                  "falls behind, up to 8 times (0 = one wake-up per packet)")
+                  "falls behind, up to 8 times and 20 ms (0 = one wake-up per packet)")
       ->check(CLI::Range(0, 10000))
       ->capture_default_str();
   sub->add_option("--contention", flags->contention,

@@ -62,9 +62,9 @@ struct StreamerOptions {
   // before its time), and sends the IMU samples due by then with them: one wake-up serves two
   // packets of a 1024x10 stream, and a wake-up costs ~100 us of CPU on a VM (the issue-26 cliff:
   // a dozen daemons' send clocks took the CPU their casting needed). While casting still falls
-  // behind, the window doubles once a second up to 8 times this, and halves back once it keeps
-  // up. 0: one wake-up per packet always. Not with cast_ahead_ms, whose packets wait for the
-  // freshest pose.
+  // behind, the window doubles once a second up to 8 times this (20 ms at most), and halves back
+  // once it keeps up. 0: one wake-up per packet always. Not with cast_ahead_ms, whose packets wait
+  // for the freshest pose.
   int coalesce_us = 2000;
   // Whether the host counts as contended (no spin, coalesced sends): kAuto follows the host's CPU
   // pressure (streamer/host_load.h); a user who knows better (a CPU quota PSI does not show, a
