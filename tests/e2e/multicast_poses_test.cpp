@@ -92,9 +92,11 @@ std::vector<std::string> daemon_args(const std::string& listen, const char* moun
                                    "--pose-udp",   listen,
                                    "--mount",      mount,
                                    "--record",     record.string()};
-  for (const char* arg :
-       lock_step ? std::vector<const char*>{"--lock-step"} : std::vector<const char*>{"--pose-clock", "monotonic"})
-    args.emplace_back(arg);
+  if (lock_step) {
+    args.emplace_back("--lock-step");
+  } else {
+    args.insert(args.end(), {"--pose-clock", "monotonic"});
+  }
   return args;
 }
 

@@ -2,9 +2,10 @@
 // How far apart the send clock's coalesced wake-ups are (StreamerOptions::coalesce_us), looked at
 // once a second. Coalescing begins at the base window; while casting still falls behind (a render
 // stall since the last look) the window doubles at each look, up to kWidestCoalescing times the
-// base (at most kWidestCoalescingNs), and once it keeps up halves back towards the base. On a host with far more
-// daemons than cores each wake-up saved is CPU given to casting: 32 daemons on 2 cores woke 10,000 times a second at 2
-// ms and rendered 5.5 M pixels/s; widening, 13 M pixels/s, what a rig renders there (docs/rig.md).
+// base (at most kWidestCoalescingNs), and once it keeps up halves back towards the base. On a host
+// with far more daemons than cores each wake-up saved is CPU given to casting: 32 daemons on 2
+// cores woke 10,000 times a second at 2 ms and rendered 5.5 M pixels/s; widening, 13 M pixels/s,
+// what a rig renders there (docs/rig.md).
 #include <algorithm>
 #include <cstdint>
 
