@@ -13,6 +13,7 @@
 #include <limits>
 
 #include "effects/builtin_effects.h"
+#include "effects/echo_quadrature.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -85,7 +86,15 @@ class Dropout final : public TabledEffect<Dropout, DropoutParameters> {
     }
   }
 
+  // Where E6 splits the footprint, each echo is detected by its own signal (echo_quadrature.h).
   void predict(const IdealReturn&, const ColumnContext&, Prediction& prediction) const override {
+    if (prediction.echo_count > 0) {
+      const auto near_ir = static_cast<float>(prediction.near_ir_photons);
+      detect_echoes(prediction, [&](double signal) {
+        return static_cast<double>(detection_probability(static_cast<float>(signal), near_ir));
+      });
+      return;
+    }
     prediction.p_detect *= static_cast<double>(detection_probability(static_cast<float>(prediction.signal_photons),
                                                                      static_cast<float>(prediction.near_ir_photons)));
   }

@@ -64,6 +64,9 @@ inline void predict_added_return_at(Prediction& prediction, const IdealReturn& i
   prediction.partner_offset_m = range_m - (static_cast<double>(ideal.range_m) + prediction.bias_m);
   prediction.partner_extra_variance_m2 = sigma_m * sigma_m - prediction.variance_m2;
   prediction.p_detect = after;
+  // E6's echoes (the pixel's own only: a partner would hold this component) are no longer the
+  // pixel's whole story; the effects after this one read its mean signal.
+  prediction.echo_count = prediction.own_echoes = 0;
 }
 
 }  // namespace lidartwin::effects_detail

@@ -17,11 +17,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <memory>
 #include <optional>
 
 #include "effects/builtin_effects.h"
+#include "effects/echo_quadrature.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -29,7 +29,6 @@ namespace {
 
 constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
 constexpr double kMinReflectance = 1e-6;              // a black surface still returns a little
-constexpr int kQuadrature = 64;                       // midpoints over delta, for predict's moments
 
 double phi(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
 
@@ -93,30 +92,20 @@ struct Straddle {
   double partner_wins_above() const { return full / (full + partner); }
 };
 
-// predict's quadrature: the shares w_k = share_beyond(delta_k) at the kQuadrature midpoints delta_k
-// of (0, spacing). They are 64 erfc per pixel at an edge, which made mixed pixels a fifth of a
-// diagnosis' time (they rerun at every likelihood evaluation of a fit placed before them), yet
-// depend on the beam spacing and the footprint alone, which a sensor's beam pairs share: each
-// thread keeps the last ones per (spacing, sigma), direct-mapped. A hit returns exactly the values a
-// fresh computation would, so predictions do not depend on the cache or the threading.
-using QuadratureShares = std::array<double, kQuadrature>;
-const QuadratureShares& quadrature_shares(const Straddle& s) {
-  struct Entry {
-    double spacing_rad = -1.0, sigma_rad = -1.0;
-    QuadratureShares w{};
-  };
-  constexpr size_t kEntries = 256;  // 132 KiB, allocated by the threads that predict (not in every thread's TLS)
-  thread_local std::unique_ptr<std::array<Entry, kEntries>> cache;
-  if (!cache) cache = std::make_unique<std::array<Entry, kEntries>>();
-  const size_t slot = (std::hash<double>{}(s.spacing_rad) ^ (std::hash<double>{}(s.sigma_rad) * 31u)) % kEntries;
-  Entry& e = (*cache)[slot];
-  if (e.spacing_rad != s.spacing_rad || e.sigma_rad != s.sigma_rad) {
-    for (int k = 0; k < kQuadrature; ++k)
-      e.w[static_cast<size_t>(k)] = s.share_beyond((k + 0.5) / kQuadrature * s.spacing_rad);
-    e.spacing_rad = s.spacing_rad;
-    e.sigma_rad = s.sigma_rad;
-  }
-  return e.w;
+// Gauss-Legendre nodes on (-1, 1), for 4 and 8 points (each symmetric pair listed once).
+struct GaussLegendreNode {
+  double x, weight;
+};
+GaussLegendreNode gauss_legendre(size_t points, size_t k) {
+  static constexpr std::array<GaussLegendreNode, 2> four{
+      {{0.3399810435848563, 0.6521451548625461}, {0.8611363115940526, 0.3478548451374538}}};
+  static constexpr std::array<GaussLegendreNode, 4> eight{{{0.1834346424956498, 0.3626837833783620},
+                                                           {0.5255324099163290, 0.3137066458778873},
+                                                           {0.7966664774136267, 0.2223810344533745},
+                                                           {0.9602898564975363, 0.1012285362903763}}};
+  const size_t pair = k % (points / 2);
+  const GaussLegendreNode n = points == 4 ? four[pair] : eight[pair];
+  return k < points / 2 ? GaussLegendreNode{-n.x, n.weight} : n;
 }
 
 class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters> {
@@ -161,40 +150,68 @@ class MixedPixels final : public TabledEffect<MixedPixels, MixedPixelsParameters
     }
   }
 
+  // The edge's position delta, uniform on (0, spacing), by Gauss-Legendre nodes on each interval
+  // where one echo is reported (Prediction::echoes): the effects after this one that read the
+  // signal (dropout, E2) take their expectations over them, as their simulate sees each pixel's
+  // draw. The moments here (the merged echo's mean and spread, the mean signal) are those nodes'.
   void predict(const IdealReturn& in, const ColumnContext&, Prediction& prediction) const override {
     if (!in.hit() || !in.has_partner()) return;
     const auto s = straddle(in);
     if (!s) return;
     const double step = s->r_q - s->r_p;
-    if (s->merged) {  // moments of the merged range and of the signal's share, by quadrature
-      double f1 = 0.0, f2 = 0.0, gain = 0.0;
-      for (const double w : quadrature_shares(*s)) {
-        const double p = s->power_p(w), q = s->power_q(w);
-        const double f = q / (p + q);
-        f1 += f / kQuadrature, f2 += f * f / kQuadrature, gain += (p + q) / s->full / kQuadrature;
+    std::array<Prediction::Echo, Prediction::kMaxEchoes> echoes{};
+    size_t count = 0, own = 0;
+    // Nodes on (a, b) of delta, each echo's signal relative to the pixel's whole footprint on its
+    // own surface (signal_photons so far), and its range offset from that surface.
+    const auto add_nodes = [&](double a, double b, size_t nodes, bool partner) {
+      for (size_t k = 0; k < nodes; ++k) {
+        const GaussLegendreNode node = gauss_legendre(nodes, k);
+        const double delta = 0.5 * (a + b) + 0.5 * (b - a) * node.x;
+        const double w = s->share_beyond(delta), p = s->power_p(w), q = s->power_q(w);
+        Prediction::Echo& e = echoes[count++];
+        e.weight = static_cast<float>(0.5 * (b - a) * node.weight / s->spacing_rad);
+        if (s->merged) {
+          e.signal_factor = static_cast<float>((p + q) / s->full);
+          e.offset_m = static_cast<float>(step * q / (p + q));
+        } else {
+          e.signal_factor = static_cast<float>((partner ? q : p) / s->full);
+          e.offset_m = static_cast<float>(partner ? step : 0.0);
+        }
       }
-      prediction.bias_m += step * f1;
-      prediction.variance_m2 += step * step * std::max(f2 - f1 * f1, 0.0);
-      prediction.signal_photons *= gain;
-      return;
+    };
+    // The partner's echo is the stronger (and reported) where w > partner_wins_above(), which is
+    // at delta below delta_at(it) (w falls with delta); the pixel's own beyond.
+    const double split = s->merged ? 0.0 : s->delta_at(std::nextafter(s->partner_wins_above(), 1.0));
+    const bool partner_wins = split > 0.0, own_wins = split < s->spacing_rad;
+    const size_t half = Prediction::kMaxEchoes / 2;
+    if (own_wins) add_nodes(split, s->spacing_rad, partner_wins ? half : Prediction::kMaxEchoes, false);
+    own = count;
+    if (partner_wins) add_nodes(0.0, split, own_wins ? half : Prediction::kMaxEchoes, true);
+    double gain = 0.0, partner = 0.0;
+    for (size_t k = 0; k < count; ++k) {
+      gain += static_cast<double>(echoes[k].weight) * static_cast<double>(echoes[k].signal_factor);
+      if (k >= own) partner += static_cast<double>(echoes[k].weight);
     }
-    // Split echoes: intervals of w, hence of delta, decide which is reported and whether the
-    // weaker comes second.
-    const double t = s->partner_wins_above();
-    const double fraction = params().second_fraction;
-    prediction.partner_mix = s->probability_w_in(std::nextafter(t, 1.0), 0.5);
+    for (size_t k = 0; k < count; ++k)
+      echoes[k].signal_factor = static_cast<float>(static_cast<double>(echoes[k].signal_factor) / gain);
+    prediction.signal_photons *= gain;
+    prediction.echoes = echoes;
+    prediction.echo_count = static_cast<uint8_t>(count);
+    prediction.own_echoes = static_cast<uint8_t>(own);
+    const OffsetMoments merged = own_offset_moments(prediction);
+    prediction.bias_m += merged.mean;
+    prediction.variance_m2 += merged.variance;
+    if (s->merged) return;
+    prediction.partner_mix = partner;
     prediction.partner_offset_m = step;
     prediction.partner_extra_variance_m2 = 0.0;  // the same Gaussian (a halo's before it is replaced)
     // Partner first: the pixel's echo second when (1 - w) >= fraction; pixel first: the partner's
     // second when w partner / full >= fraction.
+    const double t = s->partner_wins_above();
+    const double fraction = params().second_fraction;
     const double partner_second_from = fraction * s->full / s->partner;
     prediction.p_second = s->probability_w_in(std::nextafter(t, 1.0), std::min(0.5, 1.0 - fraction)) +
                           s->probability_w_in(std::max(partner_second_from, 0.0), std::min(t, 0.5));
-    double gain = 0.0;
-    for (const double w : quadrature_shares(*s)) {
-      gain += std::max(s->power_p(w), s->power_q(w)) / s->full / kQuadrature;
-    }
-    prediction.signal_photons *= gain;
   }
 
  private:

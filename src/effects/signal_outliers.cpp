@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "effects/builtin_effects.h"
+#include "effects/echo_quadrature.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -57,8 +58,13 @@ class SignalOutliers final : public TabledEffect<SignalOutliers, SignalOutlierPa
   // (quantization, the window's limits) applies to both, as their simulate applies to any return.
   // Composed with a tail already there (two such effects), the shares add and the extra variances
   // are weighed by them.
+  // Where E6 splits the footprint, the share is the mean over the pixel's own echoes
+  // (echo_quadrature.h); a partner's echo's tails are not modelled (it lies a depth step away,
+  // beyond the pixel's own Gaussian whatever its spread).
   void predict(const IdealReturn&, const ColumnContext&, Prediction& prediction) const override {
-    const double add = share(prediction.signal_photons);
+    const double add = prediction.echo_count > 0
+                           ? echo_means(prediction, [this](double signal) { return share(signal); }).own
+                           : share(prediction.signal_photons);
     if (add <= 0.0) return;
     const double extra = params().sigma_m * params().sigma_m;
     const double total = std::min(prediction.tail_mix + add, 1.0);

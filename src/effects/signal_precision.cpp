@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "effects/builtin_effects.h"
+#include "effects/echo_quadrature.h"
 #include "effects/parameters.h"
 
 namespace lidartwin::effects_detail {
@@ -44,8 +45,17 @@ class SignalPrecision final : public TabledEffect<SignalPrecision, SignalPrecisi
 
   bool adds_returns() const override { return false; }
 
+  // Where E6 splits the footprint, each echo's spread follows its own signal (echo_quadrature.h):
+  // the own and the partner's components each take their echoes' mean variance.
   void predict(const IdealReturn&, const ColumnContext&, Prediction& prediction) const override {
-    prediction.variance_m2 += variance(prediction.signal_photons, prediction.near_ir_photons);
+    const double ambient = prediction.near_ir_photons;
+    if (prediction.echo_count > 0) {
+      const EchoMeans v = echo_means(prediction, [&](double signal) { return variance(signal, ambient); });
+      prediction.variance_m2 += v.own;
+      if (prediction.partner_mix > 0.0) prediction.partner_extra_variance_m2 += v.partner - v.own;
+      return;
+    }
+    prediction.variance_m2 += variance(prediction.signal_photons, ambient);
   }
 
  private:

@@ -1,5 +1,6 @@
 #pragma once
 // The values an effect chain produces and predicts for one pixel.
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -106,6 +107,26 @@ struct Prediction {
   // values above (photons^2; 0 = reported exactly).
   double signal_variance = 0.0;
   double near_ir_variance = 0.0;
+  // E6's echoes, for the effects after it that read the signal. Where the footprint straddles a
+  // depth step, where the edge lies (a draw per pixel) decides which echo is reported and how much
+  // power it carries, and the effects that read that signal (dropout, E2's spread and tails) act
+  // on each draw's own signal: their predictions are expectations over the edge's position, not
+  // functions of the mean signal (which would make detection and the partner's share independent
+  // where they are not: a dim oblique pixel is detected mostly when its bright partner wins).
+  // Nodes of a quadrature over that position: the probability of each (given detection, once
+  // dropout has weighed them), its signal as a factor of signal_photons (so effects that scale the
+  // signal scale every node), and its range offset from the pixel's own surface (a merged echo's
+  // power-weighted mean; the partner's step). The first own_echoes nodes are the pixel's own echo's
+  // (its Gaussian), the rest the partner's (partner_mix). echo_count 0: one echo, signal_photons.
+  struct Echo {
+    float weight = 0.0f;
+    float signal_factor = 1.0f;
+    float offset_m = 0.0f;
+  };
+  static constexpr size_t kMaxEchoes = 8;
+  std::array<Echo, kMaxEchoes> echoes{};
+  uint8_t echo_count = 0;
+  uint8_t own_echoes = 0;
 };
 
 // What the chain knows beyond the pixel: the random-stream key and the wire format's limits.
