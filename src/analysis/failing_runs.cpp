@@ -11,10 +11,13 @@
 
 #include <fmt/format.h>
 
+#include "analysis/percent_text.h"
 #include "lidartwin/analysis/compare_report.h"
 
 namespace lidartwin {
 namespace {
+
+using analysis_detail::percent;
 
 // Features whose bins are integers ([k, k] or [lo, hi] inclusive): neighbours when the next starts
 // one after this one ends. Materials are ids, not an order: never merged.
@@ -33,13 +36,6 @@ int direction(const FailingRegion& f) { return f.measured > f.predicted ? 1 : -1
 std::string millimetres(double m) {
   const double mm = 1000.0 * std::abs(m);
   return mm < 10.0 ? fmt::format("{:.1f} mm", mm) : fmt::format("{:.0f} mm", mm);
-}
-// Digits where they tell rates apart: near 0 (outliers) and near 1 (detection).
-std::string percent(double f) {
-  if (f < 0.001) return fmt::format("{:.3f} %", 100 * f);
-  if (f < 0.1) return fmt::format("{:.1f} %", 100 * f);
-  if (f > 0.99 && f < 1.0) return fmt::format("{:.2f} %", std::min(100 * f, 99.99));  // not 1 unless 1
-  return fmt::format("{:.0f} %", 100 * f);
 }
 
 // "3.1–5.2 mm", or one value when the run's bins agree to the digits shown.

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "analysis/misfit_features.h"
+#include "analysis/percent_text.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
 #include "lidartwin/random/counter_rng.h"
 
@@ -27,6 +28,7 @@ using analysis_detail::kMinTested;
 using analysis_detail::kOutlierZ;
 using analysis_detail::make_features;
 using analysis_detail::model_of;
+using analysis_detail::percent;
 
 // The binnings reported: each feature alone, and the pairs the physics says interact (3.2).
 std::vector<std::vector<std::string>> binnings(const Features& f, PixelTable::Reference reference) {
@@ -62,6 +64,8 @@ struct Acc {
   double wz2 = 0;                          // weighted z^2 less the reference's share (add_pixel)
   double model_dof = 0;                    // what wz2 is under the model (ratio^2 = wz2 / model_dof)
   double dof_weight = 0, dof_weight2 = 0;  // the spread's degrees of freedom, (sum)^2 / sum2
+  double z2 = 0;                           // E[z^2] of the inliers under the model (the bias test's variance)
+  double z2_variance = 0;                  // the sum of Var[z^2]: how far z^2 is from chi-square
   double reference2 = 0;                   // the reference's own variance (map mode), taken out of the spreads
   double weighted_sigma2 = 0;              // sigma_model^2 weighted as the ratio weighs (map mode's spread_m)
   double outliers_expected = 0;
@@ -72,12 +76,17 @@ struct Acc {
 // model expects, an inlier's E[z^2]): worked out once per pixel, not once per binning (16 of them).
 struct ReturnTerms {
   std::vector<double> outliers_expected;
-  std::vector<double> z2;
-  ReturnTerms(const PixelTable& t, const PixelScores& s) : outliers_expected(t.size(), 0.0), z2(t.size(), 1.0) {
+  std::vector<double> z2, z4;
+  ReturnTerms(const PixelTable& t, const PixelScores& s)
+      : outliers_expected(t.size(), 0.0), z2(t.size(), 1.0), z4(t.size(), 3.0) {
     for (size_t i = 0; i < t.size(); ++i) {
       if (t.ideal_range_m[i] <= 0.0f || t.range_m[i] <= 0.0f) continue;
       outliers_expected[i] = expected_outlier_share(t, i);
-      if (!s.impossible[i] && std::abs(f64(s.z[i])) <= kOutlierZ) z2[i] = inlier_z2(t, i);
+      if (!s.impossible[i] && std::abs(f64(s.z[i])) <= kOutlierZ) {
+        const analysis_detail::InlierMoments m = analysis_detail::inlier_moments(t, i);
+        z2[i] = m.z2;
+        z4[i] = m.z4;
+      }
     }
   }
 };
@@ -118,6 +127,8 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, const ReturnTe
   const double weight = w * std::min(1.0 / std::max(1.0 - reference_share, 1e-12), 2.0);
   // E[z^2] of an inlier is 1 under the model, more where E2's tails put some returns inside too.
   const double z2 = terms.z2[i];
+  a.z2 += z2;
+  a.z2_variance += std::max(terms.z4[i] - z2 * z2, 0.0);
   a.wz2 += weight * (z * z - reference_share);
   a.model_dof += weight * (z2 - reference_share);
   // The ratio's degrees of freedom: (sum of weights)^2 / sum of their squares, z^2 counting 1 each.
@@ -188,8 +199,11 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     b.bias_predicted_m = a.bias / n;
     b.spread_measured_m = std::sqrt(std::max(a.eb2 / n - (a.eb / n) * (a.eb / n) - a.reference2 / n, 0.0));
     b.spread_predicted_m = std::sqrt(std::max(a.sigma2 - a.reference2, 0.0) / n);
-    // z's variance under the model: 1, plus the quantization of the measured range (Sheppard).
+    // The quantization of the measured range (Sheppard) in z's variance; the bias test's variance
+    // also counts E2's tails' returns inside (E[z^2] of an inlier, inlier_moments), which the
+    // spread's ratio has in model_dof.
     const double v = 1.0 + a.sheppard / n;
+    const double v_bias = (a.z2 + a.sheppard) / n;
     const double z_mean = a.z / n;
     // Residuals about a temporal mean weigh by their share of the degrees of freedom (1 elsewhere).
     const double ratio2 = std::max(a.wz2 / a.model_dof - z_mean * z_mean, 0.0) / v;
@@ -201,11 +215,14 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
       b.spread_predicted_m = std::sqrt(a.weighted_sigma2 / a.dof_weight);
       b.spread_measured_m = b.spread_ratio * b.spread_predicted_m;
     }
-    b.misfit_bias = n * z_mean * z_mean / (2.0 * v);
+    b.misfit_bias = n * z_mean * z_mean / (2.0 * v_bias);
     b.misfit_spread = ratio2 > 0.0 ? n * (-0.5 * std::log(ratio2) + 0.5 * ratio2 - 0.5) : 0.0;
     if (a.inliers >= kMinTested) {
-      raw.bias = two_sided_normal(a.z / std::sqrt(n * v));
-      const double dof = a.dof_weight * a.dof_weight / a.dof_weight2;
+      raw.bias = two_sided_normal(a.z / std::sqrt(n * v_bias));
+      // A Gaussian's z^2 has variance 2 E[z^2]^2; E2's tails give it more (a mixture's z^2 is heavy
+      // tailed), and the chi-square's degrees of freedom shrink by as much (Satterthwaite).
+      const double heavier = a.z2 > 0.0 ? std::max(n * a.z2_variance / (2.0 * a.z2 * a.z2), 1.0) : 1.0;
+      const double dof = a.dof_weight * a.dof_weight / a.dof_weight2 / heavier;
       const double cdf = chi2_cdf(dof * ratio2, dof - 1.0);
       raw.spread = std::min(1.0, 2.0 * std::min(cdf, 1.0 - cdf));
     }
@@ -220,11 +237,6 @@ std::string millimetres(double m) {
   return std::abs(mm) < 10.0 ? fmt::format("{:.1f} mm", mm) : fmt::format("{:.0f} mm", mm);
 }
 std::string signed_millimetres(double m) { return (m >= 0 ? "+" : "") + millimetres(m); }
-std::string percent(double f) {
-  return f < 0.001 ? fmt::format("{:.3f} %", 100 * f)
-         : f < 0.1 ? fmt::format("{:.1f} %", 100 * f)
-                   : fmt::format("{:.0f} %", 100 * f);
-}
 
 std::string sentence(const FailingRegion& f, const BinMisfit& b) {
   const std::string where = describe(f.region);
@@ -240,8 +252,15 @@ std::string sentence(const FailingRegion& f, const BinMisfit& b) {
                        millimetres(b.spread_measured_m), millimetres(b.spread_predicted_m), count);
   }
   if (f.quantity == "detection") {
-    return fmt::format("{}: {} of pixels return, the model expects {} ({})", where, percent(b.detection_measured),
-                       percent(b.detection_predicted), count);
+    // Where nearly every pixel returns, the misses say it: a handful against a fraction of one.
+    const auto pixels = static_cast<double>(b.pixels);
+    const double misses = std::round(pixels * (1.0 - b.detection_measured));
+    const std::string missed =
+        b.detection_predicted > 0.99
+            ? fmt::format("{:.0f} misses, the model expects {:.3g}; ", misses, pixels * (1.0 - b.detection_predicted))
+            : "";
+    return fmt::format("{}: {} of pixels return, the model expects {} ({}{})", where, percent(b.detection_measured),
+                       percent(b.detection_predicted), missed, count);
   }
   return fmt::format("{}: {} of returns lie beyond 5 sigma, the model expects {} ({} returns)", where,
                      percent(b.outliers_measured), percent(b.outliers_predicted), b.returns);

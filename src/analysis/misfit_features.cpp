@@ -44,16 +44,22 @@ double expected_outlier_share(const PixelTable& t, size_t i) {
   return pi + (1.0 - pi) * (core * 2.0 * normal_cdf(-kOutlierZ) + share * partner_out + tail * tail_out);
 }
 
-double inlier_z2(const PixelTable& t, size_t i) {
+InlierMoments inlier_moments(const PixelTable& t, size_t i) {
   const double tail = std::clamp(f64(t.tail_mix[i]), 0.0, 1.0);
   const double k = f64(t.tail_sigma_m[i]) / f64(t.predicted_sigma_m[i]);  // the tail's sigma in the core's
-  if (tail <= 0.0 || !(k > 0.0) || !std::isfinite(k)) return 1.0;
-  // A standard normal's share inside +-a and its second moment there, for the tail's a = kOutlierZ / k.
+  if (tail <= 0.0 || !(k > 0.0) || !std::isfinite(k)) return {};
+  // A standard normal's share inside +-a and its second and fourth moments there, for the tail's
+  // a = kOutlierZ / k (the core's: 1 and 3 of nearly all).
   const double a = kOutlierZ / k;
+  const double density = std::exp(-0.5 * a * a) / std::sqrt(2.0 * std::numbers::pi);
   const double inside = 1.0 - 2.0 * normal_cdf(-a);
-  const double second = k * k * (inside - 2.0 * a * std::exp(-0.5 * a * a) / std::sqrt(2.0 * std::numbers::pi));
-  return ((1.0 - tail) + tail * second) / ((1.0 - tail) + tail * inside);  // the core's: 1 of nearly all
+  const double second = inside - 2.0 * a * density;
+  const double fourth = 3.0 * second - 2.0 * a * a * a * density;
+  const double mass = (1.0 - tail) + tail * inside;
+  return {((1.0 - tail) + tail * k * k * second) / mass, (3.0 * (1.0 - tail) + tail * k * k * k * k * fourth) / mass};
 }
+
+double inlier_z2(const PixelTable& t, size_t i) { return inlier_moments(t, i).z2; }
 
 int Feature::bin(double v) const {
   const auto it = std::upper_bound(edges.begin(), edges.end(), v);

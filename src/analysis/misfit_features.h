@@ -27,6 +27,14 @@ double expected_outlier_share(const PixelTable& t, size_t i);
 // E[z^2] of return i given that it is an inlier (|z| <= kOutlierZ, z in the core's sigmas): 1, but
 // where E2's tails put a share of the returns in a wider Gaussian, some of which fall inside.
 double inlier_z2(const PixelTable& t, size_t i);
+// E[z^2] and E[z^4] of return i given that it is an inlier, as inlier_z2: (1, 3) for the core alone.
+// The bias test's variance is the first; the spread test's (the variance of z^2) is z4 - z2^2,
+// which E2's tails make several times a Gaussian's 2.
+struct InlierMoments {
+  double z2 = 1.0;
+  double z4 = 3.0;
+};
+InlierMoments inlier_moments(const PixelTable& t, size_t i);
 
 struct Feature {
   std::string name;
