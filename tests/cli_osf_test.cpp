@@ -140,7 +140,8 @@ TEST(CliOsf, FitWritesTheProfileThePcapGives) {
 
 TEST(CliOsf, AMetadataFileBesideTheOsfIsUsedAndSaidSo) {
   const fs::path dir = temp("override");
-  const CliRun r = run_cli("compare --static --frames 2 --capture " + kOsf + " --metadata " + kJson +
+  // --map: the recording moves (0.75 m), which --static refuses.
+  const CliRun r = run_cli("compare --map --frames 2 --capture " + kOsf + " --metadata " + kJson +
                            " --profile os1-128 --no-plots --out " + dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("note: --metadata " + kJson + " replaces the sensor metadata stored in the OSF file"),

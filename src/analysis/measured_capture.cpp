@@ -109,4 +109,14 @@ MeasuredCapture read_capture(const std::filesystem::path& pcap, const std::files
                   batcher.expected_packets(), fullest));
 }
 
+size_t columns_not_received(const MeasuredCapture& capture) {
+  size_t columns = 0;
+  for (const BatchedFrame& frame : capture.frames) {
+    for (const uint64_t received : frame.scan.packet_received) {
+      if (received == 0) columns += static_cast<size_t>(capture.metadata.format.columns_per_packet);
+    }
+  }
+  return columns;
+}
+
 }  // namespace lidartwin

@@ -71,12 +71,16 @@ BatchedFrame frame_of(const OsfScan& osf, const Metadata& metadata, size_t expec
     const std::optional<ChannelField> channel = channel_of(image.field);
     if (channel && scan.has(*channel)) copy_into(image, format.pixel_shift_by_row, scan, *channel);
   }
-  // A packet arrived if the writer stamped it, or (files without packet timestamps) if any of its
-  // columns carries a timestamp.
+  // A packet arrived if any of its columns carries a timestamp, or, in a scan none of whose columns
+  // does, if the writer stamped the packet. A writer may stamp every packet of a scan and keep the
+  // columns' valid bits, although the recording stopped before some arrived: those columns carry
+  // no timestamp, and are absent, not dark.
   const auto per_packet = static_cast<size_t>(format.columns_per_packet);
+  const bool columns_stamped = std::ranges::any_of(scan.timestamp_ns, [](uint64_t t) { return t != 0; });
   for (size_t p = 0; p < scan.packet_received.size(); ++p) {
-    uint64_t stamp = p < osf.packet_timestamp_ns.size() ? osf.packet_timestamp_ns[p] : 0;
+    uint64_t stamp = 0;
     for (size_t m = p * per_packet; stamp == 0 && m < (p + 1) * per_packet; ++m) stamp = scan.timestamp_ns[m];
+    if (!columns_stamped && p < osf.packet_timestamp_ns.size()) stamp = osf.packet_timestamp_ns[p];
     scan.packet_received[p] = stamp;
     if (stamp != 0) ++frame.packets;
   }

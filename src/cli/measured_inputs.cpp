@@ -276,6 +276,12 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
                  "read, and a frame it cuts is as complete as its packets\n",
                  in.capture.string().c_str(), out.capture.cut_short_record);
   }
+  if (const size_t absent = columns_not_received(out.capture); absent > 0) {
+    std::fprintf(stderr,
+                 "note: %zu columns of the %zu frames read never arrived (packets lost, outside the azimuth window, "
+                 "or after the recording stopped): left out, not scored as misses\n",
+                 absent, out.capture.frames.size());
+  }
   if (out.capture.lidar_streams > 1) {
     std::fprintf(stderr, "note: %s holds %zu lidar sensors; reading the first\n", in.capture.string().c_str(),
                  out.capture.lidar_streams);
@@ -304,6 +310,7 @@ Measured measure(const MeasuredFlags& flags, const SensorProfile& profile, const
   inputs.lidar_mode = to_string(LidarMode{format.columns_per_frame, format.fps});
   inputs.udp_profile_lidar = to_string(format.udp_profile_lidar);
   inputs.missing_fields = out.capture.missing_fields;
+  inputs.columns_not_received = columns_not_received(out.capture);
   return out;
 }
 

@@ -6,6 +6,7 @@
 
 #include "lidartwin/analysis/measured_capture.h"
 #include "lidartwin/analysis/static_table.h"
+#include "lidartwin/error.h"
 #include "lidartwin/profile/sensor_profile.h"
 
 namespace lidartwin {
@@ -32,6 +33,24 @@ TEST(StaticTable, TheUnitsSignalMultiplierScalesTheExpectedSignal) {
     spread_fell += two.predicted_sigma_m[i] < one.predicted_sigma_m[i];
   }
   EXPECT_GT(spread_fell, one.size() / 2);  // os0-128 carries E2: sigma^2 = floor^2 + k^2 / S
+}
+
+// The real OS-1-128 sample travels 0.75 m over its three frames: static mode refuses it, with the
+// motion it found, rather than scoring the motion as spread (it read +4,347 standard errors).
+TEST(StaticTable, AMovingSensorIsRefusedWithTheMotionFound) {
+  const MeasuredCapture capture =
+      read_capture(kSamples + "OS-1-128_v2.3.0_1024x10_lb_n3.pcap", kSamples + "OS-1-128_v2.3.0_1024x10.json");
+  const SensorProfile profile = load_profile("os1-128");
+  const EffectChain chain = EffectChain::from_json(profile.effects, "os1-128");
+  try {
+    build_static_table({capture, chain, profile.max_range_m});
+    FAIL() << "a moving capture was taken as motionless";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("--static: the sensor moved: between frame 0 and frame 2 the range of "), std::string::npos)
+        << message;
+    EXPECT_NE(message.find("compare with --map"), std::string::npos) << message;
+  }
 }
 
 }  // namespace

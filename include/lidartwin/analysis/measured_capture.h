@@ -35,4 +35,9 @@ struct MeasuredCapture {
 MeasuredCapture read_capture(const std::filesystem::path& capture, const std::filesystem::path& metadata_path,
                              size_t max_frames = 0, size_t skip_frames = 0);
 
+// The columns of the capture's frames whose packets never arrived (lost, outside an azimuth
+// window, or after a recording stopped mid-frame): absent, not dark. compare leaves them out
+// and says how many.
+size_t columns_not_received(const MeasuredCapture& capture);
+
 }  // namespace lidartwin
