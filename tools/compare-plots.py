@@ -248,6 +248,8 @@ def fitted_value(name, p):
     robust = p.get("ci95_robust")
     if robust and robust[0] is not None and robust[1] is not None:
         text += " (robust [%s, %s])" % (number(robust[0]), number(robust[1]))
+    if p.get("bound"):
+        text += ' <b class="bound">(%s: the data does not fix it)</b>' % html.escape(p["bound"])
     return text
 
 
@@ -264,10 +266,16 @@ def diagnosis_section(report):
            "<br>".join(fitted_value(name, p) for name, p in c["params"].items()))
         for c in d["selected"])
     if rows:
-        parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC</th>"
+        parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC, given the effects "
+                     "selected before it</th>"
                      "<th>fitted value [95 %% interval] (robust interval)</th></tr>%s</table>" % rows)
     else:
         parts.append("<p>No library effect is selected.</p>")
+    ranked = "".join("<tr><td>%s (%s)</td><td>%+.1f</td></tr>" % (html.escape(c["effect"]), html.escape(c["catalogue"]),
+                                                                 c["delta_bic"]) for c in d.get("ranked", [])[:5])
+    if ranked:
+        parts.append("<table class=\"ranked\"><tr><th>candidate</th><th>delta BIC, fitted alone against the "
+                     "profile (as the terminal ranks them)</th></tr>%s</table>" % ranked)
     if d.get("intervals_caveat"):
         parts.append("<p class=\"intervals-caveat\"><b>About the intervals:</b> %s</p>"
                      % html.escape(d["intervals_caveat"]))

@@ -173,6 +173,8 @@ nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
                    {"localized_nats", run.localized_nats},
                    {"p_value", run.p_value},
                    {"where", run.where},
+                   {"everywhere", run.everywhere},
+                   {"rides_along", run.rides_along},
                    {"trend", run.trend},
                    {"sentence", run.sentence}});
   }
@@ -226,6 +228,7 @@ nlohmann::json inputs_json(const CompareInputs& in) {
                         {"udp_profile_lidar", in.udp_profile_lidar},
                         {"seed", in.seed}};
   if (!in.missing_fields.empty()) out["missing_fields"] = in.missing_fields;
+  out["columns_not_received"] = in.columns_not_received;
   if (in.pose_refinement) out["pose_refinement"] = refinement_json(*in.pose_refinement);
   if (in.registration) {
     const FrameRegistration& r = *in.registration;

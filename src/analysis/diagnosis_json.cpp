@@ -3,6 +3,8 @@
 
 #include <cmath>
 
+#include <fmt/format.h>
+
 namespace lidartwin {
 namespace {
 
@@ -11,6 +13,8 @@ nlohmann::json params_json(const std::vector<FittedParameter>& params) {
   for (const FittedParameter& p : params) {
     out[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
     if (!std::isnan(p.robust_lo)) out[p.name]["ci95_robust"] = {p.robust_lo, p.robust_hi};
+    if (!std::isnan(p.lower)) out[p.name]["bounds"] = {p.lower, p.upper};
+    if (const std::string note = bound_note(p); !note.empty()) out[p.name]["bound"] = note;
   }
   return out;
 }
@@ -107,6 +111,17 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
           {"replace", replace},
           {"remaining", {{"failing_regions", d.remaining_failing}, {"excess_se", d.remaining_excess_se}}},
           {"intervals_caveat", d.intervals_caveat}};
+}
+
+std::string bound_note(const FittedParameter& p) {
+  if (std::isnan(p.lower) || std::isnan(p.upper) || !(p.upper > p.lower)) return "";
+  const double close = 1e-6 * (p.upper - p.lower);
+  if (p.value <= p.lower + close) return fmt::format("at its lower bound {:.4g}", p.lower);
+  if (p.value >= p.upper - close) return fmt::format("at its upper bound {:.4g}", p.upper);
+  if (p.ci95_lo <= p.lower + close && p.ci95_hi >= p.upper - close) {
+    return fmt::format("its interval spans its bounds {:.4g} .. {:.4g}", p.lower, p.upper);
+  }
+  return "";
 }
 
 }  // namespace lidartwin

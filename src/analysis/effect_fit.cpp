@@ -475,7 +475,8 @@ void set_intervals(const FitProblem& f, const std::vector<double>& x, double bes
     };
     const double half = half_width(covariance(jj, jj)), robust_half = half_width(robust(jj, jj));
     c.params.push_back({f.spec().free[j].name, x[j], std::max(lower[j], x[j] - half), std::min(upper[j], x[j] + half),
-                        std::max(lower[j], x[j] - robust_half), std::min(upper[j], x[j] + robust_half)});
+                        std::max(lower[j], x[j] - robust_half), std::min(upper[j], x[j] + robust_half), lower[j],
+                        upper[j]});
   }
 }
 

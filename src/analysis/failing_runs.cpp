@@ -2,6 +2,7 @@
 // of their feature, those that localize it first (compare_report.h): what the terminal and
 // report.html list, where report.json's "failing" keeps every bin.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <optional>
@@ -113,8 +114,11 @@ std::optional<Trend> trend(const std::vector<const FailingRegion*>& bins) {
   if ((low != 0 && low != last) || excess[static_cast<size_t>(peak)] < 1.5 * excess[static_cast<size_t>(low)]) {
     return std::nullopt;
   }
+  // Rising or falling as the values shown read (millimetres of bias unsigned): a spread ratio whose
+  // misfit grows from 0.7 to 0.4 times the model's falls.
+  const bool rising = q == "bias" ? std::abs(v.back()) > std::abs(v.front()) : v.back() > v.front();
   const std::string way =
-      fmt::format("{} with {}", peak == last ? "rising" : "falling", feature_noun(bins.front()->region.front().first));
+      fmt::format("{} with {}", rising ? "rising" : "falling", feature_noun(bins.front()->region.front().first));
   return Trend{way, fmt::format("{} from {} at {} to {} at {}", way, text(v.front()), describe(bins.front()->region),
                                 text(v.back()), describe(bins.back()->region))};
 }
@@ -245,6 +249,37 @@ class Contrast {
   std::map<std::string, Deviation> bins_;
 };
 
+// Each feature's tested bins (each alone, at least kMinTested pixels): their spans.
+using TestedBins = std::map<std::string, std::vector<std::array<double, 2>>>;
+TestedBins tested_bins(const Misfit& misfit) {
+  constexpr size_t kMinTested = 30;
+  TestedBins bins;
+  for (const BinMisfit& b : misfit.bins) {
+    if (b.region.size() != 1 || b.pixels < kMinTested) continue;
+    bins[b.region.front().first].push_back(b.region.front().second);
+  }
+  return bins;
+}
+
+// A run over (nearly) every tested bin of its feature names no place ("incidence above 0°",
+// "azimuth 0–360°", "beams 2–125" of 128): it says the misfit is everywhere along that feature,
+// and is named so. One whose misfit changes along it (a trend: "falling with time") names its
+// cause by the trend, and keeps its span.
+constexpr double kEverywhereShare = 0.9;
+void name_everywhere(FailingRun& run, const TestedBins& tested) {
+  if (run.region.size() != 1 || run.bins < 2 || !run.trend.empty()) return;
+  const auto& [name, range] = run.region.front();
+  const auto bins = tested.find(name);
+  if (bins == tested.end()) return;
+  const auto inside = std::ranges::count_if(
+      bins->second, [&range](const std::array<double, 2>& b) { return b[0] >= range[0] && b[1] <= range[1]; });
+  if (static_cast<double>(inside) < kEverywhereShare * static_cast<double>(bins->second.size())) return;
+  const std::string everywhere = "everywhere (" + run.where + ")";
+  if (run.sentence.rfind(run.where, 0) == 0) run.sentence.replace(0, run.where.size(), everywhere);
+  run.where = everywhere;
+  run.everywhere = true;
+}
+
 }  // namespace
 
 std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std::string>& material_names) {
@@ -252,9 +287,11 @@ std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std
   const Contrast contrast(misfit);
   std::vector<const FailingRegion*> single;
   std::vector<FailingRun> runs;
+  const TestedBins tested = tested_bins(misfit);
   const auto add = [&](const std::vector<const FailingRegion*>& bins) {
     runs.push_back(make_run(bins, material_names));
     runs.back().localized_nats = contrast.localized_nats(bins);
+    name_everywhere(runs.back(), tested);
   };
   for (const FailingRegion& f : misfit.failing) {
     if (f.region.size() == 1) single.push_back(&f);
@@ -276,10 +313,48 @@ std::vector<FailingRun> failing_runs(const Misfit& misfit, const std::vector<std
     current.push_back(f);
   }
   if (!current.empty()) add(current);
-  std::stable_sort(runs.begin(), runs.end(), [](const FailingRun& a, const FailingRun& b) {
-    return a.localized_nats != b.localized_nats ? a.localized_nats > b.localized_nats : a.misfit_nats > b.misfit_nats;
+  // Where the quantity's cause is known (misfit.causes), a run of a feature it follows leads, in
+  // the order they are followed; one of a feature that only rides along with them comes last and
+  // says so. The rest, and every pair region, keep their place between, by the misfit they
+  // localize.
+  const auto cause_of = [&misfit](const std::string& quantity) -> const MisfitCause* {
+    for (const MisfitCause& c : misfit.causes) {
+      if (c.quantity == quantity) return &c;
+    }
+    return nullptr;
+  };
+  const auto position = [](const std::vector<std::string>& list, const std::string& name) {
+    return static_cast<size_t>(std::find(list.begin(), list.end(), name) - list.begin());
+  };
+  std::vector<int> tier(runs.size(), 1);
+  std::vector<size_t> order(runs.size(), 0);
+  for (size_t k = 0; k < runs.size(); ++k) {
+    FailingRun& run = runs[k];
+    const MisfitCause* cause = cause_of(run.quantity);
+    if (cause == nullptr || run.region.size() != 1) continue;
+    const std::string& feature = run.region.front().first;
+    if (const size_t at = position(cause->follows, feature); at < cause->follows.size()) {
+      tier[k] = 0;
+      order[k] = at;
+    } else if (position(cause->rides_along, feature) < cause->rides_along.size()) {
+      tier[k] = 2;
+      run.rides_along = cause->follows.front();
+      run.sentence += fmt::format(" (rides along with {}: within its bins, this feature fails no more)",
+                                  feature_noun(cause->follows.front()));
+    }
+  }
+  std::vector<size_t> index(runs.size());
+  for (size_t k = 0; k < runs.size(); ++k) index[k] = k;
+  std::stable_sort(index.begin(), index.end(), [&](size_t a, size_t b) {
+    if (tier[a] != tier[b]) return tier[a] < tier[b];
+    if (tier[a] == 0 && order[a] != order[b]) return order[a] < order[b];
+    const FailingRun &x = runs[a], &y = runs[b];
+    return x.localized_nats != y.localized_nats ? x.localized_nats > y.localized_nats : x.misfit_nats > y.misfit_nats;
   });
-  return runs;
+  std::vector<FailingRun> ranked;
+  ranked.reserve(runs.size());
+  for (const size_t k : index) ranked.push_back(std::move(runs[k]));
+  return ranked;
 }
 
 }  // namespace lidartwin

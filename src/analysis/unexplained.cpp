@@ -534,4 +534,13 @@ void PatternAdjustment::apply(size_t pixel, Prediction& p) const {
   }
 }
 
+void find_causes(const PixelTable& table, const PixelScores& scores, Misfit& misfit, double alpha) {
+  misfit.causes.clear();
+  if (misfit.failing.empty()) return;
+  for (const UnexplainedMisfit& u : explain_misfit(table, scores, misfit, alpha)) {
+    if (u.features.empty()) continue;
+    misfit.causes.push_back({u.quantity, u.features, u.not_features});
+  }
+}
+
 }  // namespace lidartwin

@@ -22,6 +22,7 @@
 #include "lidartwin/analysis/compare_report.h"
 #include "lidartwin/analysis/diagnosis.h"
 #include "lidartwin/analysis/misfit.h"
+#include "lidartwin/analysis/unexplained.h"
 #include "lidartwin/error.h"
 #include "lidartwin/frame/worker_pool.h"
 #include "lidartwin/profile/sensor_profile.h"
@@ -197,9 +198,17 @@ void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
 
 void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::vector<std::string>& material_names) {
   const MisfitSummary& s = misfit.summary;
+  const double excess = s.nll_se > 0 ? (s.nll_per_pixel - s.nll_expected) / s.nll_se : 0.0;
   std::printf("NLL per pixel %.4f, expected %.4f +- %.4f if the model were true (%+.1f standard errors)\n",
-              s.nll_per_pixel, s.nll_expected, s.nll_se,
-              s.nll_se > 0 ? (s.nll_per_pixel - s.nll_expected) / s.nll_se : 0.0);
+              s.nll_per_pixel, s.nll_expected, s.nll_se, excess);
+  // The excess averages over every pixel: where the model is too wide a pixel's NLL is below its
+  // expectation, where too narrow above, and the two cancel. The failing regions cannot.
+  if (!misfit.failing.empty() && std::abs(excess) < 3.0) {
+    std::printf(
+        "  (an average that can cancel: where the model is too wide the NLL falls, where too narrow it "
+        "rises; the %zu failing regions below say where it errs)\n",
+        misfit.failing.size());
+  }
   std::printf("detection %.1f %% measured, %.1f %% predicted; range z: mean %+.3f, std %.3f; PIT uniform p = %.3g\n",
               100 * s.detection_measured, 100 * s.detection_predicted, s.z_mean, s.z_std, s.pit_uniformity_p);
   if (misfit.failing.empty()) {
@@ -220,6 +229,7 @@ void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::ve
 std::string interval_text(const FittedParameter& p) {
   std::string text = fmt::format("{} = {:.4g}, 95 %: {:.4g} .. {:.4g}", p.name, p.value, p.ci95_lo, p.ci95_hi);
   if (!std::isnan(p.robust_lo)) text += fmt::format(" (robust {:.4g} .. {:.4g})", p.robust_lo, p.robust_hi);
+  if (const std::string note = bound_note(p); !note.empty()) text += " [" + note + ": the data does not fix it]";
   return text;
 }
 
@@ -237,12 +247,15 @@ void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command
   }
   for (size_t i = 0; i < std::min<size_t>(diagnosis.ranked.size(), 5); ++i) {
     const Candidate& c = diagnosis.ranked[i];
-    std::printf("  %s (%s): delta BIC %+.1f, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
+    // Each ranked candidate is fitted alone against the profile; a selected one's delta BIC is given
+    // those selected before it, which is smaller where they explain some of the same misfit.
+    std::printf("  %s (%s): delta BIC %+.1f alone, p %.2g;%s\n", c.effect.c_str(), c.catalogue.c_str(), c.delta_bic,
                 c.p_value, parameter_values_text(c.params).c_str());
   }
   for (const Replacement& r : diagnosis.replace) std::printf("  replace: %s\n", r.sentence.c_str());
   for (const Candidate& c : diagnosis.selected) {
-    std::printf("  selected: %s\n", c.effect.c_str());
+    std::printf("  selected: %s (delta BIC %+.1f given the effects selected before it)\n", c.effect.c_str(),
+                c.delta_bic);
     const std::vector<FittedParameter> shown = parameters_to_show(c.params, 8);
     for (const FittedParameter& p : shown) std::printf("    %s\n", interval_text(p).c_str());
     if (shown.size() < c.params.size()) {
@@ -278,6 +291,8 @@ int run_compare(const CompareFlags& flags) {
   result.alpha = flags.alpha;
   Scored scored;
   score_profiles(flags, measured, p, result, scored, steps);
+  // What each failing quantity follows, correlated features partialled out: the runs lead with it.
+  find_causes(*scored.table, scored.scores, result.misfit, flags.alpha);
   result.residuals = residual_histograms(*scored.table, scored.scores);
   if (!result.misfit.failing.empty()) result.image = range_image(*scored.table, scored.scores, result.misfit);
   if (flags.diagnose) {

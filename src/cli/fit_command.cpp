@@ -47,6 +47,7 @@ nlohmann::json note(const Candidate& c) {
   for (const FittedParameter& p : c.params) {
     params[p.name] = {{"value", p.value}, {"ci95", {p.ci95_lo, p.ci95_hi}}};
     if (!std::isnan(p.robust_lo)) params[p.name]["ci95_robust"] = {p.robust_lo, p.robust_hi};
+    if (const std::string bound = bound_note(p); !bound.empty()) params[p.name]["bound"] = bound;
   }
   return {{"effect", c.effect},
           {"catalogue", c.catalogue},
@@ -192,7 +193,11 @@ void print_fit(const Candidate& c, const std::string& replaces) {
   for (const FittedParameter& p : c.params) {
     std::printf("  %s = %.6g  (95 %%: %.6g .. %.6g", p.name.c_str(), p.value, p.ci95_lo, p.ci95_hi);
     if (!std::isnan(p.robust_lo)) std::printf("; robust %.6g .. %.6g", p.robust_lo, p.robust_hi);
-    std::printf(")\n");
+    std::printf(")");
+    if (const std::string bound = bound_note(p); !bound.empty()) {
+      std::printf(" [%s: the data does not fix it]", bound.c_str());
+    }
+    std::printf("\n");
   }
 }
 

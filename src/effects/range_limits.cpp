@@ -89,7 +89,7 @@ class RangeLimits final : public TabledEffect<RangeLimits, RangeLimitsParameters
     const double mean = static_cast<double>(ideal.range_m) + prediction.bias_m;
     const double partner = prediction.partner_mix;  // E6, E8: a return from the edge partner's surface, a halo's
     // E2's tails: a tail_mix share of the pixel's own returns is wider, and crosses the window's
-    // ends more often (a 29 cm tail at 1 m reaches below a 0.3 m minimum range).
+    // ends more often (a 28 cm tail at 1 m reaches below a 0.3 m minimum range).
     const double tail = std::clamp(prediction.tail_mix, 0.0, 1.0);
     double own = inside(mean, prediction.variance_m2);
     if (tail > 0.0) {

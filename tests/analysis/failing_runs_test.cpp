@@ -50,6 +50,28 @@ TEST(FailingRuns, NeighbouringBinsFailingAlikeAreOneRunRankedByTheirTotalMisfit)
   EXPECT_EQ(runs[4].where, "beam 47");
 }
 
+// A spread ratio whose misfit grows as it falls (0.7, 0.55, 0.4 times the model's) falls in words:
+// "rising with the expected signal from 0.7 times ... to 0.4 times" contradicted itself.
+TEST(FailingRuns, ATrendRisesOrFallsAsItsValuesRead) {
+  Misfit misfit;
+  const double edges[] = {0.0, 10.0, 30.0, 100.0};
+  const double ratios[] = {0.7, 0.55, 0.4};
+  for (size_t k = 0; k < 3; ++k) {
+    FailingRegion f = bias("signal", edges[k], edges[k + 1], 0.0, 100.0 + 50.0 * static_cast<double>(k));
+    f.quantity = "spread";
+    f.measured = 0.01 * ratios[k];
+    f.predicted = 0.01;
+    misfit.failing.push_back(f);
+  }
+  const std::vector<FailingRun> runs = failing_runs(misfit, {});
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].trend, "falling with the expected signal");
+  EXPECT_NE(runs[0].sentence.find("falling with the expected signal from 0.7 times at expected signal below 10 "
+                                  "photons to 0.4 times at expected signal 30–100 photons"),
+            std::string::npos)
+      << runs[0].sentence;
+}
+
 // A bin of `n` inliers whose mean z is `z`, `bias_m` longer than the model: its misfit (n z^2 / 2)
 // in misfit.bins, and a failing region.
 void add_bias_bin(Misfit& misfit, const std::string& feature, double lo, double hi, size_t n, double z, double bias_m) {
@@ -97,7 +119,7 @@ TEST(FailingRuns, ARunThatPeaksInsideSaysWhereAndAFlatOneHasNoTrend) {
   ASSERT_EQ(runs.size(), 2u);
   EXPECT_EQ(runs[0].trend, "most at incidence 30–45°");
   EXPECT_NE(runs[0].sentence.find("most at incidence 30–45° (9.0 mm)"), std::string::npos) << runs[0].sentence;
-  EXPECT_EQ(runs[1].where, "beams 0–3");
+  EXPECT_EQ(runs[1].where, "everywhere (beams 0–3)");  // every beam tested fails alike: no place
   EXPECT_EQ(runs[1].trend, "");
 }
 
@@ -110,6 +132,30 @@ TEST(FailingRuns, MaterialsAreNamedAsTheSceneNamesThemAndNeverMerged) {
   EXPECT_EQ(runs[0].where, "material wall_grey (2)");
   EXPECT_EQ(runs[0].sentence, "material wall_grey (2): the measured range is ...");
   EXPECT_EQ(runs[1].where, "material 3");  // unnamed in the scene
+}
+
+// A run over every tested bin of its feature names no place: "azimuth 0–360°" reads as where the
+// model fails, when it fails everywhere along the azimuth.
+TEST(FailingRuns, ARunOverEveryTestedBinOfItsFeatureIsNamedEverywhere) {
+  Misfit misfit;
+  for (int k = 0; k < 8; ++k) add_bias_bin(misfit, "azimuth", 45.0 * k, 45.0 * (k + 1), 1000, 0.3, 0.002);
+  for (int k = 0; k < 3; ++k) add_bias_bin(misfit, "range", k, k + 1, 1000, 0.3, 0.002);
+  BinMisfit far;  // range 3-4 m is tested but does not fail: the range run is a place
+  far.region = {{"range", {3.0, 4.0}}};
+  far.pixels = far.returns = far.inliers = 1000;
+  misfit.bins.push_back(far);
+  const std::vector<FailingRun> runs = failing_runs(misfit, {});
+  ASSERT_EQ(runs.size(), 2u);
+  for (const FailingRun& run : runs) {
+    if (run.region.front().first == "azimuth") {
+      EXPECT_TRUE(run.everywhere);
+      EXPECT_EQ(run.where.rfind("everywhere (azimuth ", 0), 0u) << run.where;
+      EXPECT_EQ(run.sentence.rfind(run.where + ": ", 0), 0u) << run.sentence;
+    } else {
+      EXPECT_FALSE(run.everywhere) << run.where;
+      EXPECT_EQ(run.where, "range below 3 m");
+    }
+  }
 }
 
 }  // namespace

@@ -33,7 +33,11 @@ struct FailingRun {
   double misfit_nats = 0.0;
   double localized_nats = 0.0;  // its bins' misfit about their binning's mean deviation (failing_runs.cpp)
   double p_value = 1.0;         // its bins' smallest (corrected)
-  std::string where;            // "beams 40–44", "material wall_grey (48)"
+  std::string where;            // "beams 40–44", "material wall_grey (48)"; "everywhere (beams 0–127)" for a
+                                // run over every tested bin of its feature
+  bool everywhere = false;      // the run spans every tested bin of its feature: no place, the whole feature
+  std::string rides_along;      // the feature the quantity's misfit follows, which this run's only rides
+                                // along with (Misfit::causes); empty otherwise
   std::string trend;            // how a run of 3 or more bins changes along them: "falling with time", "most at
                                 // range 13–20 m"; empty when it does not, or not clearly
   std::string sentence;
@@ -93,6 +97,7 @@ struct CompareInputs {
   size_t skipped_frames = 0;
   std::string lidar_mode, udp_profile_lidar;
   std::vector<std::string> missing_fields;        // of the profile, absent from an OSF recording
+  size_t columns_not_received = 0;                // of the frames read: absent, left out (not misses)
   uint64_t seed = 0;                              // of the randomised PIT
   std::optional<PoseRefinement> pose_refinement;  // --refine-pose
   std::optional<FrameRegistration> registration;  // --map without --pose

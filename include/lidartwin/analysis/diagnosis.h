@@ -33,7 +33,14 @@ struct FittedParameter {
   double value = 0.0;
   double ci95_lo = 0.0, ci95_hi = 0.0;
   double robust_lo = std::numeric_limits<double>::quiet_NaN(), robust_hi = std::numeric_limits<double>::quiet_NaN();
+  // The search's bounds (NaN: not known): a value at one, or an interval that spans both, says the
+  // data does not fix the parameter within them.
+  double lower = std::numeric_limits<double>::quiet_NaN(), upper = std::numeric_limits<double>::quiet_NaN();
 };
+
+// "at its upper bound 2", "its interval spans its bounds -2 .. 2", or "" where the fit fixed it
+// inside them: the terminal, report.json ("bound") and report.html say it beside the value.
+std::string bound_note(const FittedParameter& p);
 
 struct Candidate {
   std::string effect;     // registry name

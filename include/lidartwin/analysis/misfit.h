@@ -78,12 +78,24 @@ struct MisfitSummary {
   size_t tests = 0;                   // tests the correction counted
 };
 
+// What a failing quantity's misfit follows once correlated features are partialled out
+// (unexplained.h's forward selection): the features it follows, strongest first, and those tested
+// and not followed given them, which only ride along (beams that see more depth edges than others,
+// when the misfit is at the edges).
+struct MisfitCause {
+  std::string quantity;
+  std::vector<std::string> follows;
+  std::vector<std::string> rides_along;
+};
+
 struct Misfit {
   MisfitSummary summary;
   std::vector<BinMisfit> bins;  // every populated bin of every binning
   // p < alpha after correction, worst first: by misfit per pixel, so a narrow band where the model
   // is far off ranks above a broad region that only averages it.
   std::vector<FailingRegion> failing;
+  // Filled by find_causes (empty: the runs are ranked by their bins alone).
+  std::vector<MisfitCause> causes;
 };
 
 struct MisfitOptions {

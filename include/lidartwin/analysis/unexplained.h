@@ -54,6 +54,10 @@ struct FeaturePattern {
 };
 FeaturePattern strongest_pattern(const PixelTable& table, const PixelScores& scores);
 
+// misfit.causes from explain_misfit: what each failing quantity follows and what rides along, so
+// that the failing runs lead with the cause (failing_runs).
+void find_causes(const PixelTable& table, const PixelScores& scores, Misfit& misfit, double alpha);
+
 // That pattern as an adjustment of the chain's predictions: a free value per bin of its feature,
 // fitted in closed form on the table (a bias shift in metres, a variance factor, a factor on the
 // detection probability, an added outlier share). The diagnosis adds it to ask whether a library
