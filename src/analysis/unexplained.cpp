@@ -165,33 +165,45 @@ struct BinSums {
 struct Heterogeneity {
   double chi2 = 0, dof = 0;
 };
-Heterogeneity heterogeneity(const Residual& r, const std::vector<uint32_t>& group, uint32_t groups,
+Heterogeneity heterogeneity(const Residual& r, const std::vector<uint32_t>& group, uint32_t,
                             const std::vector<int16_t>& bins, int bin_count) {
-  std::vector<BinSums> acc(static_cast<size_t>(groups) * static_cast<size_t>(bin_count));
+  // Only the cells (group, bin) that hold pixels: refined groups times a feature's bins (beams)
+  // are millions of cells, most of them empty, which a dense array cleared every call (seconds
+  // per compare on the real OS-1-128's three frames). Sorted by cell, a group's bins are
+  // contiguous and in bin order, so the sums are the dense array's, term for term.
+  std::unordered_map<uint64_t, BinSums> cells;
   for (size_t i = 0; i < bins.size(); ++i) {
     if (!r.used[i] || bins[i] < 0 || group[i] == UINT32_MAX) continue;
-    acc[static_cast<size_t>(group[i]) * static_cast<size_t>(bin_count) + static_cast<size_t>(bins[i])].add(r, i);
+    cells[static_cast<uint64_t>(group[i]) * static_cast<uint64_t>(bin_count) + static_cast<uint64_t>(bins[i])].add(r,
+                                                                                                                   i);
   }
+  std::vector<std::pair<uint64_t, const BinSums*>> tested_cells;
+  tested_cells.reserve(cells.size());
+  for (const auto& [cell, sums] : cells) {
+    if (sums.tested()) tested_cells.emplace_back(cell, &sums);
+  }
+  std::sort(tested_cells.begin(), tested_cells.end());
   Heterogeneity h;
-  for (uint32_t g = 0; g < groups; ++g) {
-    const BinSums* first = &acc[static_cast<size_t>(g) * static_cast<size_t>(bin_count)];
+  const auto width = static_cast<uint64_t>(bin_count);
+  for (size_t first = 0; first < tested_cells.size();) {
+    size_t last = first;
+    while (last < tested_cells.size() && tested_cells[last].first / width == tested_cells[first].first / width) ++last;
     double x = 0, v = 0, m = 0, q = 0;
-    int tested = 0;
-    for (int k = 0; k < bin_count; ++k) {
-      if (!first[k].tested()) continue;
-      const auto [bx, bv] = first[k].score(r.kind);
+    for (size_t k = first; k < last; ++k) {
+      const BinSums& b = *tested_cells[k].second;
+      const auto [bx, bv] = b.score(r.kind);
       x += bx;
       v += bv;
-      m += first[k].m;
-      q += first[k].q;
-      ++tested;
+      m += b.m;
+      q += b.q;
     }
-    if (tested < 2) continue;
-    const double level = BinSums::level_of(r.kind, x, v, m, q);
-    for (int k = 0; k < bin_count; ++k) {
-      if (first[k].tested()) h.chi2 += first[k].against_level(r.kind, level);
+    const auto tested = static_cast<double>(last - first);
+    if (tested >= 2) {
+      const double level = BinSums::level_of(r.kind, x, v, m, q);
+      for (size_t k = first; k < last; ++k) h.chi2 += tested_cells[k].second->against_level(r.kind, level);
+      h.dof += tested - 1;
     }
-    h.dof += tested - 1;
+    first = last;
   }
   return h;
 }

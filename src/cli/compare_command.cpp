@@ -292,7 +292,11 @@ int run_compare(const CompareFlags& flags) {
   Scored scored;
   score_profiles(flags, measured, p, result, scored, steps);
   // What each failing quantity follows, correlated features partialled out: the runs lead with it.
-  find_causes(*scored.table, scored.scores, result.misfit, flags.alpha);
+  if (!result.misfit.failing.empty()) {
+    steps.start("finding what each failing quantity follows");
+    find_causes(*scored.table, scored.scores, result.misfit, flags.alpha);
+    steps.done();
+  }
   result.residuals = residual_histograms(*scored.table, scored.scores);
   if (!result.misfit.failing.empty()) result.image = range_image(*scored.table, scored.scores, result.misfit);
   if (flags.diagnose) {
