@@ -27,17 +27,14 @@ const std::string kSource = LIDARTWIN_SOURCE_DIR;
 using lidartwin::test::CliRun;
 using lidartwin::test::run_cli;
 
-// The pcap's records (16-byte header, then incl_len bytes) after its 24-byte file header.
-struct Record {
-  size_t offset, size;  // of the whole record, header included
-  uint32_t length;      // incl_len: the captured frame (Ethernet, IP, UDP, payload)
-};
-std::vector<Record> records(const std::string& bytes) {
-  std::vector<Record> out;
+// Where each of the pcap's records (16-byte header, then incl_len bytes) begins, after its 24-byte
+// file header.
+std::vector<size_t> record_offsets(const std::string& bytes) {
+  std::vector<size_t> out;
   for (size_t at = 24; at + 16 <= bytes.size();) {
     uint32_t length = 0;
     for (int k = 3; k >= 0; --k) length = length << 8 | static_cast<uint8_t>(bytes[at + 8 + static_cast<size_t>(k)]);
-    out.push_back({at, 16 + static_cast<size_t>(length), length});
+    out.push_back(at);
     at += 16 + length;
   }
   return out;
@@ -61,9 +58,9 @@ TEST(CompareIncompleteFrame, ColumnsACaptureNeverReceivedAreLeftOutAndCounted) {
     std::ifstream in(pcap, std::ios::binary);
     bytes.assign(std::istreambuf_iterator<char>(in), {});
   }
-  const std::vector<Record> all = records(bytes);
-  ASSERT_GT(all.size(), 100u);
-  std::ofstream(pcap, std::ios::binary | std::ios::trunc) << bytes.substr(0, all[all.size() * 85 / 100].offset);
+  const std::vector<size_t> records = record_offsets(bytes);
+  ASSERT_GT(records.size(), 100u);
+  std::ofstream(pcap, std::ios::binary | std::ios::trunc) << bytes.substr(0, records[records.size() * 85 / 100]);
 
   const fs::path out = dir / "report";
   const CliRun compared = run_cli("compare --no-plots --capture " + (dir / "capture").string() + " --scene " + scene +
