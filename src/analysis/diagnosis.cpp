@@ -67,6 +67,9 @@ struct Step {
   CandidateSpec spec;
   std::optional<size_t> replaces;
   size_t parameters_removed = 0;
+  // A replacement after added effects: the chain with them refitted given it, and their values there.
+  std::optional<EffectChain> joint;
+  std::vector<Candidate> refitted;
 };
 
 // The last round: its additive candidates, what it kept, and the chain and NLL before that.
@@ -132,9 +135,41 @@ void score_replacement(Candidate& c, const Step& step, double log_n) {
   c.p_value = 1.0;
 }
 
-// The best law of another form in place of the chain's range noise, fitted there; none if the
-// chain has no noise law or no other form applies.
-std::optional<Step> best_replacement(const Search& s, const Diagnosis& d) {
+// A law fitted in place of the noise law after effects were added (`kept`), which were fitted
+// beside the old law: each refitted given the law, in turn, with the law itself (refit_in_turn). A
+// law of the right form can lose to a wrong one while the added effects keep values that stood in
+// for it: an incidence fitted beside a too-flat table takes up some of the weak oblique returns'
+// spread that E2 gives, and given that incidence a linear sigma(r) scores above E2, jointly below.
+void refit_with_kept(const Search& s, const std::vector<Step>& kept, Step& law) {
+  const EffectChain with_law = Placement{s.chain, law.replaces, true}.chain_with(law.candidate.effect_json);
+  const auto& effects = with_law.effects();
+  const auto named = [&](const std::string& name) {
+    return std::count_if(effects.begin(), effects.end(), [&](const auto& e) { return e->name() == name; });
+  };
+  std::vector<Candidate*> fitted;
+  std::vector<CandidateSpec> specs;
+  law.refitted.clear();
+  law.refitted.reserve(kept.size());
+  for (const Step& k : kept) {
+    if (named(k.candidate.effect) != 1) return;  // refit_in_turn finds effects by name
+    law.refitted.push_back(k.candidate);
+    specs.push_back(k.spec);
+  }
+  if (named(law.candidate.effect) != 1) return;
+  for (Candidate& c : law.refitted) fitted.push_back(&c);
+  fitted.push_back(&law.candidate);
+  specs.push_back(law.spec);
+  EffectChain chain = with_law;
+  double nll = s.nll - law.candidate.delta_nll;
+  analysis_detail::refit_in_turn(s.table, s.rows, chain, nll, fitted, specs);
+  law.candidate.delta_nll = s.nll - nll;
+  score_replacement(law.candidate, law, s.log_n());
+  law.joint = std::move(chain);
+}
+
+// The best law of another form in place of the chain's range noise, fitted there (with the effects
+// `kept` so far refitted beside it); none if the chain has no noise law or no other form applies.
+std::optional<Step> best_replacement(const Search& s, const Diagnosis& d, const std::vector<Step>& kept) {
   const std::optional<size_t> index = analysis_detail::range_noise_index(s.chain);
   if (!index) return std::nullopt;
   size_t removed = 0;  // the law's parameters the diagnosis fitted
@@ -144,11 +179,19 @@ std::optional<Step> best_replacement(const Search& s, const Diagnosis& d) {
   std::optional<Step> best;
   for (CandidateSpec& form :
        analysis_detail::noise_law_forms(s.chain, *index, s.table, s.rows, s.options.datasheet_noise)) {
-    Step step{{}, std::move(form), index, removed};
+    Step step{{}, std::move(form), index, removed, {}, {}};
     s.say(fmt::format("round {}: fitting {} in place of the noise law", s.round, step.spec.effect));
     step.candidate =
         fit(s.table, s.rows, Placement{s.chain, index, true}, s.nll, step.spec, nullptr, Intervals::kWithout);
     score_replacement(step.candidate, step, s.log_n());
+    if (!kept.empty()) {
+      s.say(fmt::format("round {}: {} in place of the noise law: delta BIC {:+.0f}; refitting the added effects "
+                        "beside it",
+                        s.round, step.spec.effect, step.candidate.delta_bic));
+      refit_with_kept(s, kept, step);
+    }
+    s.say(fmt::format("round {}: {} in place of the noise law: delta BIC {:+.0f}", s.round, step.spec.effect,
+                      step.candidate.delta_bic));
     if (!best || step.candidate.delta_bic > best->candidate.delta_bic) best = std::move(step);
   }
   return best;
@@ -156,6 +199,7 @@ std::optional<Step> best_replacement(const Search& s, const Diagnosis& d) {
 
 // The chain after a step.
 EffectChain chain_after(const EffectChain& chain, const Step& step) {
+  if (step.joint) return *step.joint;
   if (step.replaces) return Placement{chain, step.replaces, true}.chain_with(step.candidate.effect_json);
   return with_candidate(chain, step.candidate.effect_json);
 }
@@ -288,12 +332,22 @@ std::vector<Step> search_steps(Search& s, Diagnosis& d) {
     if (first) d.ranked = fits;
     if (last) note_shared(s, d, *last, fits, corrected_alpha);
     const Candidate* best = fits.empty() ? nullptr : &fits.front();
-    std::optional<Step> form = may_replace ? best_replacement(s, d) : std::nullopt;
+    std::optional<Step> form = may_replace ? best_replacement(s, d, steps) : std::nullopt;
     Step step;
     if (form && form->candidate.delta_bic >= s.options.min_delta_bic &&
         (!best || form->candidate.delta_bic > best->delta_bic)) {
       step = std::move(*form);
-      add_intervals(s.table, s.rows, Placement{s.chain, step.replaces, true}, step.spec, step.candidate);
+      add_intervals(s.table, s.rows, Placement{step.joint ? *step.joint : s.chain, step.replaces, true}, step.spec,
+                    step.candidate);
+      // The added effects as the law's fit left them (refit_with_kept).
+      for (const Candidate& refitted : step.refitted) {
+        for (Candidate& c : d.selected) {
+          if (c.effect == refitted.effect) c.params = refitted.params, c.effect_json = refitted.effect_json;
+        }
+        for (Step& earlier : steps) {
+          if (earlier.candidate.effect == refitted.effect) earlier.candidate = refitted;
+        }
+      }
       Replacement r{std::string(s.chain.effects()[*step.replaces]->name()),
                     "",
                     *step.replaces,

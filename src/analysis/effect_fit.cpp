@@ -563,8 +563,8 @@ void add_intervals(const PixelTable& t, const FitRows& rows, const Placement& pl
 // part of what a later one explains (incidence's bias takes up a warm-up drift's offset, and the
 // drift's constant offset then cancels it). Each is refitted in its place given all the others, in
 // turn (at most 4 passes); its interval is then its own given the others' values.
-void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
-                   std::vector<Candidate*> fitted, const std::vector<CandidateSpec>& specs) {
+void refit_in_turn(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
+                   const std::vector<Candidate*>& fitted, const std::vector<CandidateSpec>& specs) {
   if (fitted.size() < 2) return;
   for (int pass = 0; pass < 4; ++pass) {
     const double before = nll;
@@ -582,6 +582,12 @@ void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain,
     }
     if (before - nll < 0.1) break;
   }
+}
+
+void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
+                   std::vector<Candidate*> fitted, const std::vector<CandidateSpec>& specs) {
+  if (fitted.size() < 2) return;
+  refit_in_turn(t, rows, chain, nll, fitted, specs);
   // Each one's intervals where the passes left it, given the others' final values.
   for (size_t k = 0; k < fitted.size(); ++k) {
     const auto& effects = chain.effects();

@@ -144,7 +144,12 @@ void add_intervals(const PixelTable& t, const FitRows& rows, const Placement& pl
                    Candidate& c);
 
 // Each of `fitted` (effects in `chain`, found by name) refitted in its place given all the others,
-// in turn, until a pass gains less than 0.1 nats; chain, nll and the candidates are updated.
+// in turn, until a pass gains less than 0.1 nats; chain, nll and the candidates are updated (their
+// intervals are not: refit_jointly adds them).
+void refit_in_turn(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
+                   const std::vector<Candidate*>& fitted, const std::vector<CandidateSpec>& specs);
+
+// refit_in_turn, then each one's intervals given the others' final values.
 void refit_jointly(const PixelTable& t, const FitRows& rows, EffectChain& chain, double& nll,
                    std::vector<Candidate*> fitted, const std::vector<CandidateSpec>& specs);
 

@@ -63,6 +63,7 @@ struct Acc {
   double z = 0, e = 0, eb = 0, eb2 = 0, bias = 0, sigma2 = 0, sheppard = 0;
   double wz2 = 0;                          // weighted z^2 less the reference's share (add_pixel)
   double model_dof = 0;                    // what wz2 is under the model (ratio^2 = wz2 / model_dof)
+  double weight = 0;                       // the ratio's weights' sum (a mean z's share of wz2)
   double dof_weight = 0, dof_weight2 = 0;  // the spread's degrees of freedom, (sum)^2 / sum2
   double z2 = 0;                           // E[z^2] of the inliers under the model (the bias test's variance)
   double z2_variance = 0;                  // the sum of Var[z^2]: how far z^2 is from chi-square
@@ -125,12 +126,16 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, const ReturnTe
   const double reference2 = f64(t.reference_variance_m2[i]);
   const double reference_share = std::min(reference2 / (sigma * sigma), 1.0);
   const double weight = w * std::min(1.0 / std::max(1.0 - reference_share, 1e-12), 2.0);
-  // E[z^2] of an inlier is 1 under the model, more where E2's tails put some returns inside too.
+  // E[z^2] of an inlier is 1 under the model, more where E2's tails put some returns inside too;
+  // the range bins add step^2 / 12 to every component's variance (Sheppard), so to z^2: a sum, not
+  // a factor 1 + step^2 / 12 sigma^2 on E[z^2], which would scale the bins' share with the tails'.
   const double z2 = terms.z2[i];
+  const double sheppard = f64(t.step_m[i]) * f64(t.step_m[i]) / (12.0 * sigma * sigma);
   a.z2 += z2;
   a.z2_variance += std::max(terms.z4[i] - z2 * z2, 0.0);
   a.wz2 += weight * (z * z - reference_share);
-  a.model_dof += weight * (z2 - reference_share);
+  a.model_dof += weight * (z2 + sheppard - reference_share);
+  a.weight += weight;
   // The ratio's degrees of freedom: (sum of weights)^2 / sum of their squares, z^2 counting 1 each.
   a.dof_weight += weight * (1.0 - reference_share);
   if (w > 0.0) a.dof_weight2 += weight * weight / w;
@@ -141,7 +146,7 @@ void add_pixel(Acc& a, const PixelTable& t, const PixelScores& s, const ReturnTe
   a.eb2 += (e - bias) * (e - bias);
   a.bias += bias;
   a.sigma2 += z2 * sigma * sigma;
-  a.sheppard += (f64(t.step_m[i])) * f64(t.step_m[i]) / (12.0 * sigma * sigma);
+  a.sheppard += sheppard;
 }
 
 // ---- tests ---------------------------------------------------------------------------------------
@@ -199,14 +204,13 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     b.bias_predicted_m = a.bias / n;
     b.spread_measured_m = std::sqrt(std::max(a.eb2 / n - (a.eb / n) * (a.eb / n) - a.reference2 / n, 0.0));
     b.spread_predicted_m = std::sqrt(std::max(a.sigma2 - a.reference2, 0.0) / n);
-    // The quantization of the measured range (Sheppard) in z's variance; the bias test's variance
-    // also counts E2's tails' returns inside (E[z^2] of an inlier, inlier_moments), which the
-    // spread's ratio has in model_dof.
-    const double v = 1.0 + a.sheppard / n;
+    // z's variance under the model: E[z^2] of an inlier (E2's tails' returns inside count,
+    // inlier_moments) and the range bins' step^2 / 12 (Sheppard); the spread's ratio has both in
+    // model_dof.
     const double v_bias = (a.z2 + a.sheppard) / n;
     const double z_mean = a.z / n;
     // Residuals about a temporal mean weigh by their share of the degrees of freedom (1 elsewhere).
-    const double ratio2 = std::max(a.wz2 / a.model_dof - z_mean * z_mean, 0.0) / v;
+    const double ratio2 = std::max(a.wz2 - a.weight * z_mean * z_mean, 0.0) / a.model_dof;
     b.spread_ratio = std::sqrt(ratio2);
     if (a.reference2 > 0.0 && a.dof_weight > 0.0) {
       // Map mode: the millimetres as the ratio weighs its pixels. Unweighted, the few returns whose
