@@ -265,6 +265,22 @@ TEST_F(BadProfile, UnknownKeyListsTheAllowedOnes) {
   EXPECT_THAT(message, HasSubstr("max_range_m"));
 }
 
+// How far units differ, as the OS0 and OS2 profiles say it: a factor of at least 1, with its source.
+TEST_F(BadProfile, UnitToUnitSpreadIsAFactorWithItsSource) {
+  good_["unit_to_unit"] = {{"range_spread", 2.0}, {"source", "two units"}};
+  std::ofstream(dir_ / "good.json") << good_.dump();
+  const SensorProfile profile = load_profile((dir_ / "good.json").string());
+  EXPECT_EQ(profile.unit_range_spread, 2.0);
+  EXPECT_EQ(profile.unit_to_unit_source, "two units");
+  good_["unit_to_unit"]["range_spread"] = 0.5;
+  EXPECT_EQ(error_for(good_), path() + ": /unit_to_unit/range_spread: must be in [1, 10], got 0.5");
+  good_["unit_to_unit"].erase("source");
+  good_["unit_to_unit"]["range_spread"] = 2.0;
+  EXPECT_EQ(error_for(good_), path() + ": /unit_to_unit/source: missing (expected a string)");
+  EXPECT_EQ(load_profile("os0-128").unit_range_spread, 2.0);
+  EXPECT_EQ(load_profile("os1-128").unit_range_spread, 0.0) << "not known for the OS1 line";
+}
+
 TEST_F(BadProfile, SensorMetadataIsNamedAsSuch) {
   const json metadata = {{"sensor_info", {{"base_pn", "000-101323-03"}}}, {"lidar_data_format", json::object()}};
   EXPECT_THAT(error_for(metadata), HasSubstr(path() + ": this is a sensor's metadata, not a profile"));

@@ -39,13 +39,33 @@ def count_label(n):
     return "%d" % n if n < 1000 else "%.0fk" % (n / 1000) if n < 1e6 else "%.1fM" % (n / 1e6)
 
 
+# How a heat map or a range image signs each quantity (measured against the model), and what its
+# colours mean: red where the measured value is above the model's.
+DIRECTION = {
+    "spread": (lambda b: math.log2(max(b["spread_ratio"], 1e-6)),
+               ("log2(measured / model spread)", "red: the model too narrow, blue: too wide"),
+               "wider than the model's (the model too narrow)", "narrower (the model too wide)"),
+    "bias": (lambda b: 1000.0 * (b["bias_m"]["measured"] - b["bias_m"]["predicted"]),
+             ("measured − model bias, mm", "red: measured longer, blue: shorter"),
+             "longer than the model's", "shorter"),
+    "detection": (lambda b: b["detection"]["measured"] - b["detection"]["predicted"],
+                  ("measured − predicted return rate", "red: more returns than the model expects, blue: fewer"),
+                  "returning more than the model expects", "less"),
+    "outliers": (lambda b: b["outliers"]["measured"] - b["outliers"]["predicted"],
+                 ("measured − predicted share beyond 5 sigma", "red: more outliers than expected, blue: fewer"),
+                 "with more outliers than the model expects", "fewer"),
+}
+
+
 def heat_map(report, x, y, quantity, title):
-    """A misfit part (nats per pixel) over two features, log colour scale, coloured only where the
-    bin's test of that quantity fails (grey: not significant at alpha), each cell with its pixels."""
+    """Which way the model errs over two features: each cell whose test of `quantity` fails coloured
+    by the signed difference (red: the measured value above the model's, blue: below), the others
+    grey; each cell with its pixels."""
     bins = bins_of(report, [x, y])
     if not bins:
         return ""
     alpha = report["summary"]["alpha"]
+    signed, label, above_words, below_words = DIRECTION[quantity]
     xs = sorted({tuple(b["features"][x]) for b in bins})
     ys = sorted({tuple(b["features"][y]) for b in bins})
     grid = np.full((len(ys), len(xs)), np.nan)
@@ -58,27 +78,30 @@ def heat_map(report, x, y, quantity, title):
         if count <= 0:
             continue
         if b["p_value"][quantity] < alpha:
-            grid[cell] = max(b["misfit_nats"][quantity] / count, 1e-6)
+            grid[cell] = signed(b)
         else:
             quiet[cell] = 1.0
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     ax.imshow(quiet, origin="lower", aspect="auto", cmap=matplotlib.colors.ListedColormap(["#dddddd"]))
-    vmax = max(1e-3, np.nanmax(grid)) if np.isfinite(grid).any() else 1e-3
-    image = ax.imshow(grid, origin="lower", aspect="auto", cmap="magma",
-                      norm=matplotlib.colors.LogNorm(vmin=1e-4, vmax=vmax))
+    limit = max(1e-6, np.nanmax(np.abs(grid))) if np.isfinite(grid).any() else 1.0
+    image = ax.imshow(grid, origin="lower", aspect="auto", cmap="RdBu_r",
+                      norm=matplotlib.colors.Normalize(vmin=-limit, vmax=limit))
     for (row, column), count in counts.items():
-        dark = np.isfinite(grid[row, column]) and grid[row, column] < math.sqrt(1e-4 * vmax)
-        ax.text(column, row, count_label(count), ha="center", va="center", fontsize=6,
-                color="white" if dark else "#333333")
+        strong = np.isfinite(grid[row, column]) and abs(grid[row, column]) > 0.6 * limit
+        ax.text(column, row, count_label(count), ha="center", va="center", fontsize=7,
+                color="white" if strong else "#222222")
     ax.set_xticks(range(len(xs)), ["%g–%g" % r for r in xs], rotation=45, ha="right", fontsize=7)
     ax.set_yticks(range(len(ys)), ["%g–%g" % r for r in ys], fontsize=7)
     ax.set_xlabel(x)
     ax.set_ylabel(y)
-    ax.set_title("%s (grey: not significant at alpha %g; numbers: pixels)" % (title, alpha), fontsize=9)
-    fig.colorbar(image, ax=ax, label="misfit, nats per pixel")
+    ax.set_title("%s (grey: not significant at alpha %g; numbers: pixels)\n%s" % (title, alpha, label[1]), fontsize=9)
+    bar = fig.colorbar(image, ax=ax)
+    bar.set_label(label[0], fontsize=8)
     failing = int(np.isfinite(grid).sum())
-    caption = ('<p class="heat-map-caption">%d of %d cells fail in the %s, coloured by their misfit; the other %d '
-               'are grey.</p>' % (failing, len(counts), quantity, len(counts) - failing))
+    above = int((grid > 0).sum())
+    caption = ('<p class="heat-map-caption">%d of %d cells fail in the %s: %d %s, %d %s; coloured by how far, the '
+               'other %d grey.</p>' % (failing, len(counts), quantity, above, above_words, failing - above, below_words,
+                                      len(counts) - failing))
     return png(fig) + caption
 
 
@@ -131,11 +154,19 @@ def range_images(report):
             norm = matplotlib.colors.TwoSlopeNorm(vcenter=1.0, vmin=min(0.5, finite.min(initial=1.0)),
                                                   vmax=max(1.5, finite.max(initial=1.0)))
         elif quantity == "outliers":
-            norm = matplotlib.colors.Normalize(vmin=0.0, vmax=max(1e-3, finite.max(initial=0.0)))
+            # Most cells hold none and a few many: a log scale from one in ten thousand, the cells
+            # without an outlier grey beneath, so that a handful of outliers still shows where it is.
+            ax_zero = np.where(grid == 0.0, 1.0, np.nan)
+            grid = np.where(grid > 0.0, np.maximum(grid, 1e-4), np.nan)
+            norm = matplotlib.colors.LogNorm(vmin=1e-4, vmax=max(1e-3, finite.max(initial=0.0)))
         else:
             limit = max(1e-3, np.abs(finite).max(initial=0.0))
             norm = matplotlib.colors.Normalize(vmin=-limit, vmax=limit)
         fig, ax = plt.subplots(figsize=(12, 2.2 + beams / 64))
+        if quantity == "outliers":
+            ax.imshow(ax_zero, origin="upper", aspect="auto", interpolation="nearest",
+                      cmap=matplotlib.colors.ListedColormap(["#dddddd"]), extent=(0, 360, beams - 0.5, -0.5))
+            label += " (grey: none)"
         shown = ax.imshow(grid, origin="upper", aspect="auto", cmap=cmap, norm=norm, interpolation="nearest",
                           extent=(0, 360, beams - 0.5, -0.5))
         ax.set_xlabel("azimuth (encoder angle), °")
@@ -166,16 +197,29 @@ def along(report, feature, label):
     bins = sorted(bins_of(report, [feature]), key=lambda b: b["features"][feature][0])
     if not bins:
         return ""
-    x = [b["features"][feature][0] for b in bins]
+    x = np.array([b["features"][feature][0] for b in bins], dtype=float)
+    inliers = np.array([b["inliers"] for b in bins], dtype=float)
+    # A bin with few returns (a beam that mostly sees the sky) reads noisy: open grey markers, so a
+    # spike there is not taken for a fault.
+    few = max(30.0, 0.1 * float(np.median(inliers)))
+    thin = inliers < few
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 4), sharex=True)
-    top.plot(x, [b["spread_ratio"] for b in bins], marker=".")
+    for ax, values in ((top, np.array([b["spread_ratio"] for b in bins])),
+                       (bottom, np.array([1000 * (b["bias_m"]["measured"] - b["bias_m"]["predicted"]) for b in bins]))):
+        ax.plot(x, values, color="#4477aa", lw=1)
+        ax.plot(x[~thin], values[~thin], ".", color="#4477aa")
+        if thin.any():
+            ax.plot(x[thin], values[thin], "o", mfc="none", color="#999999", ms=4,
+                    label="fewer than %d returns" % few)
     top.axhline(1.0, color="gray", lw=1)
     top.set_ylabel("spread ratio")
-    bottom.plot(x, [1000 * (b["bias_m"]["measured"] - b["bias_m"]["predicted"]) for b in bins], marker=".")
     bottom.axhline(0.0, color="gray", lw=1)
     bottom.set_ylabel("bias misfit, mm")
     bottom.set_xlabel(label)
-    top.set_title("misfit per %s" % label, fontsize=10)
+    if thin.any():
+        top.legend(fontsize=7)
+    top.set_title("misfit per %s%s" % (label, " (%d of %d with few returns: open grey)" % (thin.sum(), len(bins))
+                                        if thin.any() else ""), fontsize=10)
     return png(fig)
 
 
@@ -227,7 +271,8 @@ def waterfall(report):
                    % (html.escape(w["profile"]), w["nll_per_pixel"], w["nll_per_pixel"] - best, e,
                       1000 * w["bias_rms_m"], w["spread_ratio_median"], w["detection_log_loss"], w["failing_regions"])
                    for w, e in zip(steps, excess))
-    tables = "".join(
+    notes = "".join('<p class="waterfall-note">%s</p>' % html.escape(w["note"]) for w in steps if w.get("note"))
+    tables = notes + "".join(
         '<h3 class="profile-failing">%s: %d failing regions</h3>%s'
         % (html.escape(w["profile"]), w["failing_regions"],
            failing_table(w.get("failing_runs", []), 10) or "<p>No region fails.</p>")
@@ -253,6 +298,42 @@ def fitted_value(name, p):
     return text
 
 
+def indexed(name):
+    """("offsets_m", 104) for "offsets_m/104"; (name, None) for a plain parameter."""
+    head, _, tail = name.rpartition("/")
+    return (head, int(tail)) if head and tail.isdigit() else (name, None)
+
+
+def parameters_cell(params, limit=8):
+    """A fitted effect's values: all of them where there are few; where there are many (a beam
+    offset each), how many, the largest few, and a plot by index. report.json keeps every one."""
+    if len(params) <= limit:
+        return "<br>".join(fitted_value(name, p) for name, p in params.items())
+    groups = {}
+    for name, p in params.items():
+        head, index = indexed(name)
+        groups.setdefault(head, []).append((index if index is not None else -1, name, p))
+    parts = []
+    for head, items in groups.items():
+        items.sort()
+        largest = sorted(items, key=lambda item: -abs(item[2]["value"]))[:5]
+        parts.append("%d parameters %s (by index; all in report.json); the largest: %s"
+                     % (len(items), html.escape(head), "; ".join(fitted_value(name, p) for _, name, p in largest)))
+        if len(items) > limit:
+            fig, ax = plt.subplots(figsize=(6, 2))
+            index = [i for i, _, _ in items]
+            value = np.array([p["value"] for _, _, p in items])
+            lo = np.array([p["ci95"][0] if p["ci95"][0] is not None else p["value"] for _, _, p in items])
+            hi = np.array([p["ci95"][1] if p["ci95"][1] is not None else p["value"] for _, _, p in items])
+            ax.errorbar(index, value, yerr=[value - lo, hi - value], fmt=".", ms=3, lw=0.8, color="#4477aa")
+            ax.axhline(0.0, color="gray", lw=1)
+            ax.set_xlabel("index (%s/N)" % head)
+            ax.set_ylabel(head, fontsize=8)
+            ax.set_title("%s by index, 95 %% intervals" % head, fontsize=9)
+            parts.append(png(fig))
+    return "<br>".join(parts)
+
+
 def diagnosis_section(report):
     """What --diagnose found, as the terminal prints it: the effects it selected with their values and
     95 % intervals, replacements and refits, what stays unexplained, and the command that applies it."""
@@ -263,7 +344,7 @@ def diagnosis_section(report):
     rows = "".join(
         "<tr><td>%s (%s)</td><td>%+.1f</td><td>%s</td></tr>"
         % (html.escape(c["effect"]), html.escape(c["catalogue"]), c["delta_bic"],
-           "<br>".join(fitted_value(name, p) for name, p in c["params"].items()))
+           parameters_cell(c["params"]))
         for c in d["selected"])
     if rows:
         parts.append("<table class=\"selected\"><tr><th>selected effect</th><th>delta BIC, given the effects "
@@ -281,8 +362,11 @@ def diagnosis_section(report):
                      % html.escape(d["intervals_caveat"]))
     items = ["replace: " + r["sentence"] for r in d["replace"]]
     for m in d["parameter_misfit"]:
+        moved = sorted(m["params"].items(), key=lambda item: -abs(item[1]["value"] - m["old"].get(item[0], 0.0)))
         changes = ", ".join("%s %s → %s" % (name, number(m["old"].get(name, 0.0)), number(p["value"]))
-                            for name, p in m["params"].items())
+                            for name, p in moved[:8])
+        if len(moved) > 8:
+            changes += " (the 8 that moved most of %d; all in report.json)" % len(moved)
         items.append("refitted %s (%s channel, delta BIC %+.1f): %s" % (m["effect"], m["channel"], m["delta_bic"], changes))
     items += [s["sentence"] for s in d["shared"]] + [n["sentence"] for n in d["not_selected"]]
     items += ["unexplained: " + u["sentence"] for u in d["unexplained"]]
@@ -304,11 +388,11 @@ def page(report):
         ("Diagnosis", diagnosis_section(report)),
         ("The error across profiles", waterfall(report)),
         ("Where the model fails", failing),
-        ("Spread misfit: range × incidence", heat_map(report, "range", "incidence", "spread", "spread part of the misfit")),
-        ("Bias misfit: range × incidence", heat_map(report, "range", "incidence", "bias", "bias part of the misfit")),
+        ("Spread misfit: range × incidence", heat_map(report, "range", "incidence", "spread", "the spread against the model's")),
+        ("Bias misfit: range × incidence", heat_map(report, "range", "incidence", "bias", "the bias against the model's")),
         ("Spread misfit: range × reflectivity",
-         heat_map(report, "range", "reflectivity", "spread", "spread part of the misfit")),
-        ("Bias misfit: range × reflectivity", heat_map(report, "range", "reflectivity", "bias", "bias part of the misfit")),
+         heat_map(report, "range", "reflectivity", "spread", "the spread against the model's")),
+        ("Bias misfit: range × reflectivity", heat_map(report, "range", "reflectivity", "bias", "the bias against the model's")),
     ] + range_images(report) + [
         ("Range residuals per range band", residual_histograms(report)),
         ("Detection", reliability(report)),

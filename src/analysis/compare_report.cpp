@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include <fmt/format.h>
+
 #include "lidartwin/analysis/npz_writer.h"
 
 namespace lidartwin {
@@ -50,6 +52,16 @@ WaterfallStep waterfall_step(const std::string& profile, const PixelTable& t, co
   w.failing = misfit.failing.size();
   double sum2 = 0.0;
   std::vector<double> ratios;
+  for (const BinMisfit& b : misfit.bins) {
+    if (b.region.size() == 2 && b.region[0].first == "range" && b.region[1].first == "reflectivity") {
+      const double excess = b.nll - b.nll_expected;
+      (excess < 0.0 ? w.excess_below : w.excess_above) += excess;
+    }
+  }
+  if (misfit.summary.pixels > 0) {
+    w.excess_below /= static_cast<double>(misfit.summary.pixels);
+    w.excess_above /= static_cast<double>(misfit.summary.pixels);
+  }
   for (const BinMisfit& b : misfit.bins) {
     if (b.region.size() != 1 || b.inliers < 30) continue;
     const double d = b.bias_measured_m - b.bias_predicted_m;
@@ -108,10 +120,10 @@ RangeImage range_image(const PixelTable& t, const PixelScores& s, const Misfit& 
     Cell& c = acc[static_cast<size_t>(t.beam[i]) * RangeImage::kAzimuthBins + static_cast<size_t>(sector)];
     c.pixels += 1;
     c.expected += static_cast<double>(t.p_detect[i]);
-    if (t.range_m[i] <= 0.0f || s.impossible[i]) continue;
+    if (t.range_m[i] <= 0.0f) continue;
     c.returns += 1;
     const double z = s.z[i];
-    if (std::abs(z) > 5.0) {
+    if (s.impossible[i] || std::abs(z) > 5.0) {  // as the misfit counts outliers
       c.outliers += 1;
       continue;
     }
@@ -183,6 +195,38 @@ nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
 
 }  // namespace
 
+void note_waterfall(std::vector<WaterfallStep>& steps) {
+  const auto excess = [](const WaterfallStep& w) {
+    return w.nll_se > 0 ? (w.nll_per_pixel - w.nll_expected) / w.nll_se : 0.0;
+  };
+  for (size_t k = 1; k < steps.size(); ++k) {
+    const WaterfallStep& before = steps[k - 1];
+    WaterfallStep& w = steps[k];
+    const double lower = before.nll_per_pixel - w.nll_per_pixel, e0 = excess(before), e1 = excess(w);
+    // The excess is the NLL less what the profile itself expects: below it where the profile is too
+    // wide, above where too narrow, the two cancelling in the average. A fit that mends where the
+    // model was too wide takes away the part that hid what is still too narrow.
+    const std::string parts = fmt::format(
+        "over range x reflectivity bins, {} is {:+.4f} nats a pixel where its NLL lies below its expectation (too "
+        "wide or too unsure there) and {:+.4f} where above (too narrow or too sure); {} {:+.4f} and {:+.4f}",
+        before.profile, before.excess_below, before.excess_above, w.profile, w.excess_below, w.excess_above);
+    if (lower > 0.0 && std::abs(e1) > std::abs(e0) + 1.0) {
+      w.note = fmt::format(
+          "{} fits better than {} (NLL {:.4f} a pixel lower) although its excess moved from {:+.1f} to {:+.1f} "
+          "standard errors: the excess is the NLL less what each profile expects of itself, and where one region is "
+          "too wide and another too narrow the two cancel in the average ({}). Rank profiles by NLL; the failing "
+          "regions say where each still errs.",
+          w.profile, before.profile, lower, e0, e1, parts);
+    } else if (lower < 0.0 && std::abs(e1) + 1.0 < std::abs(e0)) {
+      w.note = fmt::format(
+          "{} fits worse than {} (NLL {:.4f} a pixel higher) although its excess is nearer 0 ({:+.1f} against "
+          "{:+.1f} standard errors): a wider model expects a higher NLL and can meet it while misfitting ({}). Rank "
+          "profiles by NLL; the failing regions say where each errs.",
+          w.profile, before.profile, -lower, e1, e0, parts);
+    }
+  }
+}
+
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
   nlohmann::json out = nlohmann::json::array();
   for (const WaterfallStep& w : steps) {
@@ -194,7 +238,10 @@ nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {
                    {"spread_ratio_median", w.spread_ratio_median},
                    {"detection_log_loss", w.detection_log_loss},
                    {"failing_regions", w.failing},
-                   {"failing_runs", runs_json(w.failing_runs)}});
+                   {"failing_runs", runs_json(w.failing_runs)},
+                   {"excess_below", w.excess_below},
+                   {"excess_above", w.excess_above},
+                   {"note", w.note}});
   }
   return out;
 }
@@ -258,6 +305,9 @@ nlohmann::json report_json(const CompareResult& result) {
   const MisfitSummary& s = misfit.summary;
   nlohmann::json report;
   report["schema"] = kCompareReportSchema;
+  if (result.unit_range_spread > 0.0) {
+    report["unit_to_unit"] = {{"range_spread", result.unit_range_spread}, {"source", result.unit_to_unit_source}};
+  }
   report["verdict_sentence"] = verdict_sentence(result);
   if (!result.next_command.empty()) report["next_command"] = result.next_command;
   report["inputs"] = inputs_json(result.inputs);
@@ -276,6 +326,10 @@ nlohmann::json report_json(const CompareResult& result) {
                        {"alpha", alpha},
                        {"tests", s.tests},
                        {"failing_regions", misfit.failing.size()}};
+  if (!result.waterfall.empty()) {  // the excess's two parts (WaterfallStep), the report's profile's
+    report["summary"]["nll_excess_below"] = result.waterfall.back().excess_below;
+    report["summary"]["nll_excess_above"] = result.waterfall.back().excess_above;
+  }
   nlohmann::json failing = nlohmann::json::array();
   for (const FailingRegion& f : misfit.failing) {
     failing.push_back({{"quantity", f.quantity},

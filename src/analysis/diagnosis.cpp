@@ -185,9 +185,10 @@ std::optional<Step> best_replacement(const Search& s, const Diagnosis& d, const 
         fit(s.table, s.rows, Placement{s.chain, index, true}, s.nll, step.spec, nullptr, Intervals::kWithout);
     score_replacement(step.candidate, step, s.log_n());
     if (!kept.empty()) {
-      s.say(fmt::format("round {}: {} in place of the noise law: delta BIC {:+.0f}; refitting the added effects "
-                        "beside it",
-                        s.round, step.spec.effect, step.candidate.delta_bic));
+      s.say(
+          fmt::format("round {}: {} in place of the noise law: delta BIC {:+.0f}; refitting the added effects "
+                      "beside it",
+                      s.round, step.spec.effect, step.candidate.delta_bic));
       refit_with_kept(s, kept, step);
     }
     s.say(fmt::format("round {}: {} in place of the noise law: delta BIC {:+.0f}", s.round, step.spec.effect,

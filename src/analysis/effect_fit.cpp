@@ -459,12 +459,12 @@ void set_intervals(const FitProblem& f, const std::vector<double>& x, double bes
       continue;
     }
     std::vector<double> above = x, below = x;
-    above[j] += up;
-    below[j] -= down;
+    above[j] = std::min(x[j] + h[j], upper[j]);  // not x + up: that can round past the bound
+    below[j] = std::max(x[j] - h[j], lower[j]);
     const std::vector<double> fa = f.row_nlls_at(above);
     const std::vector<double> fb = f.row_nlls_at(below);
     gradients[j].resize(f.rows().size());
-    for (size_t k = 0; k < f.rows().size(); ++k) gradients[j][k] = (fa[k] - fb[k]) / (up + down);
+    for (size_t k = 0; k < f.rows().size(); ++k) gradients[j][k] = (fa[k] - fb[k]) / (above[j] - below[j]);
   }
   const Eigen::MatrixXd robust = covariance * score_covariance(f.table(), f.rows(), gradients) * covariance;
   c.params.clear();
@@ -536,6 +536,9 @@ Candidate fit(const PixelTable& t, const FitRows& rows, const Placement& place, 
     }
     if (result != nlopt::MAXEVAL_REACHED && !improvable()) break;
   }
+  // BOBYQA works on rescaled variables and can return a value an ulp past a bound, which the effect
+  // then refuses (a knot's sigma of 1e-6 less a rounding, against its lower bound 1e-6).
+  for (size_t j = 0; j < x.size(); ++j) x[j] = std::clamp(x[j], lower[j], upper[j]);
   Candidate c;
   c.effect = spec.effect;
   score_candidate(c, base_nll, best, static_cast<double>(x.size()), rows.size());

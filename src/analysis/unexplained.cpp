@@ -40,11 +40,19 @@ std::string words(const std::string& feature) {
 // 1 / sigma^2, so sum x / sum v is the inverse-variance mean and (x - v c)^2 / v its chi-square).
 // Spread: each bin's variance of z about its own mean. Detection and outliers: Bernoulli counts,
 // by the likelihood-ratio (G) statistic, since Pearson's overstates misses where the model is sure.
-enum class Kind { kBias, kSpread, kBernoulli };
+// A group's level is a factor on the model's detection rate, but a share added to its outlier rate
+// (kRate): a missing effect's outliers (an edge partner's returns) come on top of the few the model
+// expects, not in proportion to them. As a factor, the model's own outliers, at depth edges where
+// E2's tails meet the weaker signal, made a common level fit edge bins holding every extra outlier.
+enum class Kind { kBias, kSpread, kBernoulli, kRate };
 
 Kind kind_of(const std::string& quantity) {
-  return quantity == "bias" ? Kind::kBias : quantity == "spread" ? Kind::kSpread : Kind::kBernoulli;
+  return quantity == "bias"       ? Kind::kBias
+         : quantity == "spread"   ? Kind::kSpread
+         : quantity == "outliers" ? Kind::kRate
+                                  : Kind::kBernoulli;
 }
+bool counts(Kind kind) { return kind == Kind::kBernoulli || kind == Kind::kRate; }
 
 // One quantity's residual, pixel by pixel: x and v as Kind says; m and q what was measured and what
 // the model predicts, in natural units (metres, 0/1 and probabilities), for the words.
@@ -133,23 +141,25 @@ struct BinSums {
   // How far the bin is from the model (chi-square, 1 dof), and from a model scaled to the level
   // `level` of its group (a shift in metres, a spread's extra variance, a factor on the rate).
   double against_model(Kind kind) const {
-    if (kind == Kind::kBernoulli) return g_statistic(m, q, count());
+    if (counts(kind)) return g_statistic(m, q, count());
     const auto [sx, sv] = score(kind);
     return sx * sx / sv;
   }
   double against_level(Kind kind, double level) const {
     if (kind == Kind::kBernoulli) return g_statistic(m, std::min(level * q, count()), count());
+    if (kind == Kind::kRate) return g_statistic(m, std::clamp(q + level * count(), 0.0, count()), count());
     const auto [sx, sv] = score(kind);
     const double d = sx - sv * level;
     return d * d / sv;
   }
   // The group level these sums give (see against_level).
-  static double level_of(Kind kind, double sx, double sv, double sm, double sq) {
+  static double level_of(Kind kind, double sx, double sv, double sm, double sq, double n) {
+    if (kind == Kind::kRate) return n > 0 ? (sm - sq) / n : 0.0;
     return kind == Kind::kBernoulli ? (sq > 0 ? sm / sq : 1.0) : (sv > 0 ? sx / sv : 0.0);
   }
   // Signed standard deviations from the model.
   double z(Kind kind) const {
-    const double sign = kind == Kind::kBernoulli ? (m >= q ? 1.0 : -1.0) : (score(kind).first >= 0 ? 1.0 : -1.0);
+    const double sign = counts(kind) ? (m >= q ? 1.0 : -1.0) : (score(kind).first >= 0 ? 1.0 : -1.0);
     return sign * std::sqrt(against_model(kind));
   }
   // Measured minus model in natural units (metres, fractions), or the spread's ratio less 1.
@@ -188,7 +198,7 @@ Heterogeneity heterogeneity(const Residual& r, const std::vector<uint32_t>& grou
   for (size_t first = 0; first < tested_cells.size();) {
     size_t last = first;
     while (last < tested_cells.size() && tested_cells[last].first / width == tested_cells[first].first / width) ++last;
-    double x = 0, v = 0, m = 0, q = 0;
+    double x = 0, v = 0, m = 0, q = 0, n = 0;
     for (size_t k = first; k < last; ++k) {
       const BinSums& b = *tested_cells[k].second;
       const auto [bx, bv] = b.score(r.kind);
@@ -196,10 +206,11 @@ Heterogeneity heterogeneity(const Residual& r, const std::vector<uint32_t>& grou
       v += bv;
       m += b.m;
       q += b.q;
+      n += b.count();
     }
     const auto tested = static_cast<double>(last - first);
     if (tested >= 2) {
-      const double level = BinSums::level_of(r.kind, x, v, m, q);
+      const double level = BinSums::level_of(r.kind, x, v, m, q, n);
       for (size_t k = first; k < last; ++k) h.chi2 += tested_cells[k].second->against_level(r.kind, level);
       h.dof += tested - 1;
     }

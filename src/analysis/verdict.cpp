@@ -1,6 +1,8 @@
 // The report's first sentence (report.json's "verdict_sentence"): what is wrong, in words, and what
 // to do next. The terminal and report.html both lead with it.
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -73,6 +75,45 @@ std::string diagnosis_words(const Diagnosis& d) {
 
 }  // namespace
 
+std::string unit_spread_words(const CompareResult& result) {
+  const Misfit& misfit = result.misfit;
+  // Over all returns: the range bins hold every inlier once; their ratios' inlier-weighted RMS.
+  double ratio2 = 0.0, inliers = 0.0;
+  size_t tighter = 0, failing = 0;
+  double lo = 1e300, hi = 0.0;
+  for (const BinMisfit& b : misfit.bins) {
+    if (b.region.size() == 1 && b.region[0].first == "range" && b.inliers > 0) {
+      ratio2 += static_cast<double>(b.inliers) * b.spread_ratio * b.spread_ratio;
+      inliers += static_cast<double>(b.inliers);
+    }
+    if (b.p_spread < result.alpha) {
+      ++failing;
+      tighter += b.spread_ratio < 1.0;
+      lo = std::min(lo, b.spread_ratio);
+      hi = std::max(hi, b.spread_ratio);
+    }
+  }
+  if (inliers <= 0.0 || failing == 0) return "";
+  // Tighter only: a spread wider than the model's nearly everywhere is as often an effect the
+  // profile lacks (E2's tails inside 5 sigma, E4's footprint), which the diagnosis names; no missing
+  // effect makes a unit tighter than the profile everywhere.
+  const double all = std::sqrt(ratio2 / inliers);
+  if (all >= 1.0 / 1.15 || tighter < 9 * failing / 10) return "";
+  const std::string line = result.prod_line.empty() ? std::string("this product") : "the " + result.prod_line;
+  std::string out = fmt::format(
+      "this unit's range noise is tighter than the profile's: its spread is {:.2f} of the model's over all returns "
+      "({:.2f}–{:.2f} in the {} bins where the spread fails)",
+      all, lo, hi, failing);
+  if (result.unit_range_spread > 0.0) {
+    const bool within = all >= 1.0 / result.unit_range_spread * 0.999;
+    out += fmt::format(", {} the {:.2g}x by which units of {} are known to differ (the profile's unit_to_unit)",
+                       within ? "within" : "beyond", result.unit_range_spread, line);
+  } else {
+    out += fmt::format(", and the profile does not say how far units of {} differ", line);
+  }
+  return out;
+}
+
 std::string verdict_sentence(const CompareResult& result) {
   const Misfit& misfit = result.misfit;
   const MisfitSummary& s = misfit.summary;
@@ -86,11 +127,17 @@ std::string verdict_sentence(const CompareResult& result) {
   } else {
     out = fmt::format("The model fails in {} region{}, most in {}", misfit.failing.size(),
                       misfit.failing.size() == 1 ? "" : "s", where_it_fails(result));
+    if (const std::string unit = unit_spread_words(result); !unit.empty()) {
+      out +=
+          ". " + std::string(1, static_cast<char>(std::toupper(static_cast<unsigned char>(unit[0])))) + unit.substr(1);
+    }
   }
   if (result.diagnosis && (!misfit.failing.empty() || !result.diagnosis->selected.empty())) {
     out += "; " + diagnosis_words(*result.diagnosis);
   } else if (!result.diagnosis && !misfit.failing.empty()) {
-    out += "; run the same compare with --diagnose to name the missing effect";
+    out += unit_spread_words(result).empty()
+               ? "; run the same compare with --diagnose to name the missing effect"
+               : "; run the same compare with --diagnose to fit this unit's own noise and name what else is missing";
   }
   if (!result.next_command.empty()) out += ": run `" + result.next_command + "`";
   return out + ".";

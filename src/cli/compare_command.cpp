@@ -86,6 +86,7 @@ void score_profiles(const CompareFlags& flags, const Measured& measured, const P
         waterfall_step(p.profiles[k].name, *scored.table, result.misfit, measured.inputs.material_names));
     steps.done();
   }
+  note_waterfall(result.waterfall);
 }
 
 Diagnosis diagnose_last(const CompareFlags& flags, const PixelTable& table, const SensorProfile& profile,
@@ -142,8 +143,13 @@ std::string shell_word(const std::string& word) {
 // The `fit` that applies what the diagnosis found to the compared profile, on the same capture:
 // its replacements (--replace) and selected effects (--add), fitted again there. Empty when the
 // diagnosis neither adds nor replaces anything.
+// Where the diagnosis adds nothing but refits the profile's own effects on the range (a unit whose
+// noise is tighter than the profile's), `fit --auto` makes that refit: a twin of this unit.
 std::string next_fit_command(const CompareFlags& flags, const Diagnosis& diagnosis) {
-  if (diagnosis.selected.empty() && diagnosis.replace.empty()) return "";
+  const bool refits = std::any_of(diagnosis.parameter_misfit.begin(), diagnosis.parameter_misfit.end(),
+                                  [](const ParameterMisfit& m) { return m.channel == "range"; });
+  const bool adds = !diagnosis.selected.empty() || !diagnosis.replace.empty();
+  if (!adds && !refits) return "";
   const MeasuredFlags& m = flags.measured;
   std::string command = "lidartwin fit --capture " + shell_word(m.capture);
   const auto option = [&](const char* name, const std::string& value) {
@@ -160,6 +166,7 @@ std::string next_fit_command(const CompareFlags& flags, const Diagnosis& diagnos
   if (m.within_frame) command += " --within-frame";
   if (m.refine_pose) command += " --refine-pose";
   option("--profile", flags.profiles.back());
+  if (!adds) command += " --auto";
   for (const Replacement& r : diagnosis.replace) option("--replace", r.effect + "=" + r.with.effect);
   for (const Candidate& c : diagnosis.selected) option("--add", c.effect);
   if (flags.refit_noise) command += " --refit-noise";
@@ -196,18 +203,21 @@ void print_inputs(const CompareFlags& flags, const CompareInputs& in) {
   }
 }
 
-void print_misfit(const CompareFlags& flags, const Misfit& misfit, const std::vector<std::string>& material_names) {
+void print_misfit(const CompareFlags& flags, const Misfit& misfit, const WaterfallStep& parts,
+                  const std::vector<std::string>& material_names) {
   const MisfitSummary& s = misfit.summary;
   const double excess = s.nll_se > 0 ? (s.nll_per_pixel - s.nll_expected) / s.nll_se : 0.0;
   std::printf("NLL per pixel %.4f, expected %.4f +- %.4f if the model were true (%+.1f standard errors)\n",
               s.nll_per_pixel, s.nll_expected, s.nll_se, excess);
   // The excess averages over every pixel: where the model is too wide a pixel's NLL is below its
-  // expectation, where too narrow above, and the two cancel. The failing regions cannot.
-  if (!misfit.failing.empty() && std::abs(excess) < 3.0) {
+  // expectation, where too narrow above, and the two cancel. Its two parts, and the failing
+  // regions, cannot.
+  if (!misfit.failing.empty()) {
     std::printf(
-        "  (an average that can cancel: where the model is too wide the NLL falls, where too narrow it "
-        "rises; the %zu failing regions below say where it errs)\n",
-        misfit.failing.size());
+        "  (an average that can cancel: over range x reflectivity bins, %+.4f nats a pixel where the NLL lies below "
+        "the model's expectation, too wide or too unsure there, and %+.4f where above, too narrow or too sure; the "
+        "%zu failing regions below say where it errs)\n",
+        parts.excess_below, parts.excess_above, misfit.failing.size());
   }
   std::printf("detection %.1f %% measured, %.1f %% predicted; range z: mean %+.3f, std %.3f; PIT uniform p = %.3g\n",
               100 * s.detection_measured, 100 * s.detection_predicted, s.z_mean, s.z_std, s.pit_uniformity_p);
@@ -278,6 +288,9 @@ void print_waterfall(const std::vector<WaterfallStep>& waterfall) {
                 w.nll_se > 0 ? (w.nll_per_pixel - w.nll_expected) / w.nll_se : 0.0, 1000 * w.bias_rms_m,
                 w.spread_ratio_median, w.detection_log_loss, w.failing);
   }
+  for (const WaterfallStep& w : waterfall) {
+    if (!w.note.empty()) std::printf("  %s\n", w.note.c_str());
+  }
 }
 
 int run_compare(const CompareFlags& flags) {
@@ -288,6 +301,9 @@ int run_compare(const CompareFlags& flags) {
   result.inputs = measured.inputs;
   result.inputs.seed = flags.seed;
   result.inputs.profile = p.profiles.back().name;  // the report is of the last profile
+  result.prod_line = p.profiles.back().prod_line;
+  result.unit_range_spread = p.profiles.back().unit_range_spread;
+  result.unit_to_unit_source = p.profiles.back().unit_to_unit_source;
   result.alpha = flags.alpha;
   Scored scored;
   score_profiles(flags, measured, p, result, scored, steps);
@@ -300,8 +316,14 @@ int run_compare(const CompareFlags& flags) {
   result.residuals = residual_histograms(*scored.table, scored.scores);
   if (!result.misfit.failing.empty()) result.image = range_image(*scored.table, scored.scores, result.misfit);
   if (flags.diagnose) {
-    result.diagnosis = diagnose_last(flags, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
-    result.next_command = next_fit_command(flags, *result.diagnosis);
+    // A unit whose spread is tighter or wider than the profile's nearly everywhere: its own noise
+    // law is what to fit first, so the diagnosis refits the law's sigmas (--refit-noise) and the
+    // next command carries it.
+    CompareFlags diagnosed = flags;
+    diagnosed.refit_noise = flags.refit_noise || !unit_spread_words(result).empty();
+    result.diagnosis =
+        diagnose_last(diagnosed, *scored.table, p.profiles.back(), p.chains.back(), result.misfit, steps);
+    result.next_command = next_fit_command(diagnosed, *result.diagnosis);
   }
   write_outputs(flags, result, scored, steps);
 
@@ -310,7 +332,7 @@ int run_compare(const CompareFlags& flags) {
   std::printf("compared %zu frames, %zu pixels (%zu returns) of %s with profile %s\n", s.frames, s.pixels, s.returns,
               result.inputs.capture.c_str(), result.inputs.profile.c_str());
   print_inputs(flags, result.inputs);
-  print_misfit(flags, result.misfit, result.inputs.material_names);
+  print_misfit(flags, result.misfit, result.waterfall.back(), result.inputs.material_names);
   if (result.diagnosis) print_diagnosis(*result.diagnosis, result.next_command);
   if (result.waterfall.size() > 1) print_waterfall(result.waterfall);
   std::string plots = "report.html not written (--no-plots)";

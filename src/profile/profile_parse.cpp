@@ -145,6 +145,13 @@ ImuNoise read_imu(const json& value, const Location& at) {
   return imu;
 }
 
+void read_unit_to_unit(const json& value, const Location& at, SensorProfile& profile) {
+  const ObjectReader reader(value, at, {"range_spread", "source"});
+  profile.unit_range_spread =
+      read_number(reader.at("range_spread", "a factor in [1, 10]"), at.child("range_spread"), Range{1.0, 10.0});
+  profile.unit_to_unit_source = read_string(reader.at("source", "a string"), at.child("source"));
+}
+
 }  // namespace
 
 SensorProfile parse_profile(const nlohmann::json& document, std::string_view source) {
@@ -157,9 +164,10 @@ SensorProfile parse_profile(const nlohmann::json& document, std::string_view sou
                        "\"); a profile is profiles/*.json or what `lidartwin fit` writes");
     }
   }
-  const ObjectReader top(document, root,
-                         {"prod_line", "prod_pn", "source", "min_range_m", "max_range_m", "beam_divergence_rad",
-                          "lidar_modes", "beam_intrinsics", "effects", "imu", "fit"});  // fit: `lidartwin fit`'s notes
+  const ObjectReader top(
+      document, root,
+      {"prod_line", "prod_pn", "source", "min_range_m", "max_range_m", "beam_divergence_rad", "lidar_modes",
+       "beam_intrinsics", "effects", "imu", "unit_to_unit", "fit"});  // fit: `lidartwin fit`'s notes
   SensorProfile profile;
   profile.name = std::filesystem::path(source).stem().string();
   profile.prod_line = read_string(top.at("prod_line", "a string such as \"OS-1-64\""), root.child("prod_line"));
@@ -179,6 +187,7 @@ SensorProfile parse_profile(const nlohmann::json& document, std::string_view sou
   check_prod_line(profile.prod_line, profile.beams.altitude_deg.size(), root.child("prod_line"));
   profile.effects = read_effects(top.at("effects", "an array of effects"), root.child("effects"));
   if (const json* imu = top.find("imu")) profile.imu = read_imu(*imu, root.child("imu"));
+  if (const json* u = top.find("unit_to_unit")) read_unit_to_unit(*u, root.child("unit_to_unit"), profile);
   return profile;
 }
 

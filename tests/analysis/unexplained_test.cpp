@@ -113,5 +113,36 @@ TEST(Unexplained, ALevelAlikeEverywhereFollowsNoFeature) {
   EXPECT_EQ(of(e.unexplained, "spread"), nullptr);
 }
 
+// A missing effect's outliers come on top of the model's own: an edge partner's returns (E6) at
+// 3 % of the pixels at depth edges, where the model expects a few outliers of its own (E2's tails,
+// 1e-4), and far ranges, where it expects many (2e-3) and there are no more. Read as a factor on
+// the model's rate, the edge bins' excess nearly fitted one common level (the model's rate is high
+// there too) while the range bins, whose rate the excess does not follow, led; the excess is a
+// share added to the model's rate, and it follows the distance to the edge first.
+TEST(Unexplained, OutliersAddedAtDepthEdgesFollowTheEdgeNotWhereTheModelExpectsItsOwn) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  PixelTable t = test::synthetic_layout();
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double ideal = static_cast<double>(t.ideal_range_m[i]);
+    t.expected_signal[i] = static_cast<float>(2e5 / (ideal * ideal));
+    const bool edge = t.column[i] % 8 == 0;
+    if (edge) t.edge[i] = 0;
+    t.outlier_mix[i] = static_cast<float>((ideal > 40.0 ? 2e-3 : 1e-6) + (edge ? 1e-4 : 0.0));
+    double r = ideal + noise(rng);
+    if (uniform(rng) < static_cast<double>(t.outlier_mix[i])) r = 0.3 + 100.7 * uniform(rng);
+    if (edge && uniform(rng) < 0.03) r = ideal + 1.5 + noise(rng);
+    t.range_m[i] = static_cast<float>(std::round(r * 1000.0) / 1000.0);
+  }
+  const PixelScores scores = score_pixels(t);
+  const std::vector<UnexplainedMisfit> all = explain_misfit(t, scores, find_misfit(t, scores, 4, {}), 0.01);
+  const UnexplainedMisfit* outliers = of(all, "outliers");
+  ASSERT_NE(outliers, nullptr);
+  ASSERT_FALSE(outliers->features.empty()) << outliers->sentence;
+  EXPECT_EQ(outliers->features.front(), "edge") << outliers->sentence;
+  EXPECT_FALSE(has(outliers->features, "range")) << outliers->sentence;
+}
+
 }  // namespace
 }  // namespace lidartwin

@@ -54,11 +54,20 @@ struct WaterfallStep {
   double spread_ratio_median = 1.0;  // median over those bins
   double detection_log_loss = 0.0;   // per pixel that meets a surface
   size_t failing = 0;
+  // The NLL's excess over its expectation (nats per pixel of the capture) summed over the range x
+  // reflectivity bins where it is negative (the model too wide or too unsure there) and where it is
+  // positive (too narrow or too sure): the two parts the headline's average lets cancel.
+  double excess_below = 0.0, excess_above = 0.0;
   std::vector<FailingRun> failing_runs;  // its own, largest misfit first (report.html's table)
+  // Beside the step before it, where the NLL and the excess over the profile's own expectation
+  // move apart (a better fit whose excess grows): why; empty otherwise.
+  std::string note;
 };
 // material_names: as failing_runs takes them.
 WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit,
                              const std::vector<std::string>& material_names = {});
+// Each step's note against the one before it (WaterfallStep::note).
+void note_waterfall(std::vector<WaterfallStep>& steps);
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps);
 
 // The standardized range residuals (z) of the returns in one band of ideal range, counted in
@@ -117,12 +126,24 @@ struct CompareResult {
   std::optional<RangeImage> image;
   // The command that applies the diagnosis (`lidartwin fit ... --add ...`); empty: nothing to apply.
   std::string next_command;
+  // The report's profile: its product line, and how far its units are known to differ
+  // (SensorProfile::unit_range_spread, 0: unknown, and where that is known from).
+  std::string prod_line;
+  double unit_range_spread = 0.0;
+  std::string unit_to_unit_source;
 };
 nlohmann::json report_json(const CompareResult& result);
 
 // What is wrong and what to do next, in one sentence: where the misfit lies (the two quantities
-// that carry most of it, each with its worst region), what --diagnose found, and the next command.
+// that carry most of it, each with its worst region), what --diagnose found, and the next command;
+// and, where the range spread is below the model's nearly everywhere, that this unit's noise is
+// tighter than the profile's (unit_spread_words).
 std::string verdict_sentence(const CompareResult& result);
+
+// "this unit's range noise is tighter than the profile's: ..." where the spread fails, at least 90 %
+// of its failing bins are below the model's, and over all returns the measured spread is below
+// 1 / 1.15 of the model's; empty otherwise.
+std::string unit_spread_words(const CompareResult& result);
 
 // Every column of the table and of the scores, one array each (names: docs/compare-report.md).
 void write_pixels_npz(const std::filesystem::path& path, const PixelTable& table, const PixelScores& scores);

@@ -38,6 +38,11 @@ struct SensorProfile {
   std::vector<std::string> lidar_modes{"512x10", "512x20", "1024x10", "1024x20", "2048x10"};
   nlohmann::json effects = nlohmann::json::array();  // the effect chain, parsed by effects/
   ImuNoise imu;                                      // "imu"; absent: an exact IMU
+  // "unit_to_unit": how far units of the product line are known to differ from the one the
+  // effects were fitted on, as a factor on the range spread (2: half to twice); 0 where unknown.
+  // compare names it beside a unit whose spread is tighter or wider than the profile's.
+  double unit_range_spread = 0.0;
+  std::string unit_to_unit_source;
 };
 
 // Loads profiles/<name>.json (or a path to a .json file). Unknown keys, missing keys and values
