@@ -370,6 +370,8 @@ def diagnosis_section(report):
         items.append("refitted %s (%s channel, delta BIC %+.1f): %s" % (m["effect"], m["channel"], m["delta_bic"], changes))
     items += [s["sentence"] for s in d["shared"]] + [n["sentence"] for n in d["not_selected"]]
     items += ["unexplained: " + u["sentence"] for u in d["unexplained"]]
+    if d.get("remaining", {}).get("note"):
+        items.append(d["remaining"]["note"])
     if not d["unexplained"]:
         items.append("Nothing stays unexplained: with the selected effects no quantity fails any more.")
     parts.append("<ul>%s</ul>" % "".join("<li>%s</li>" % html.escape(i) for i in items))

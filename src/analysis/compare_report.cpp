@@ -195,36 +195,38 @@ nlohmann::json runs_json(const std::vector<FailingRun>& runs) {
 
 }  // namespace
 
-void note_waterfall(std::vector<WaterfallStep>& steps) {
-  const auto excess = [](const WaterfallStep& w) {
-    return w.nll_se > 0 ? (w.nll_per_pixel - w.nll_expected) / w.nll_se : 0.0;
+std::string excess_note(const WaterfallStep& before, const WaterfallStep& w) {
+  const auto excess = [](const WaterfallStep& x) {
+    return x.nll_se > 0 ? (x.nll_per_pixel - x.nll_expected) / x.nll_se : 0.0;
   };
-  for (size_t k = 1; k < steps.size(); ++k) {
-    const WaterfallStep& before = steps[k - 1];
-    WaterfallStep& w = steps[k];
-    const double lower = before.nll_per_pixel - w.nll_per_pixel, e0 = excess(before), e1 = excess(w);
-    // The excess is the NLL less what the profile itself expects: below it where the profile is too
-    // wide, above where too narrow, the two cancelling in the average. A fit that mends where the
-    // model was too wide takes away the part that hid what is still too narrow.
-    const std::string parts = fmt::format(
-        "over range x reflectivity bins, {} is {:+.4f} nats a pixel where its NLL lies below its expectation (too "
-        "wide or too unsure there) and {:+.4f} where above (too narrow or too sure); {} {:+.4f} and {:+.4f}",
-        before.profile, before.excess_below, before.excess_above, w.profile, w.excess_below, w.excess_above);
-    if (lower > 0.0 && std::abs(e1) > std::abs(e0) + 1.0) {
-      w.note = fmt::format(
-          "{} fits better than {} (NLL {:.4f} a pixel lower) although its excess moved from {:+.1f} to {:+.1f} "
-          "standard errors: the excess is the NLL less what each profile expects of itself, and where one region is "
-          "too wide and another too narrow the two cancel in the average ({}). Rank profiles by NLL; the failing "
-          "regions say where each still errs.",
-          w.profile, before.profile, lower, e0, e1, parts);
-    } else if (lower < 0.0 && std::abs(e1) + 1.0 < std::abs(e0)) {
-      w.note = fmt::format(
-          "{} fits worse than {} (NLL {:.4f} a pixel higher) although its excess is nearer 0 ({:+.1f} against "
-          "{:+.1f} standard errors): a wider model expects a higher NLL and can meet it while misfitting ({}). Rank "
-          "profiles by NLL; the failing regions say where each errs.",
-          w.profile, before.profile, -lower, e1, e0, parts);
-    }
+  const double lower = before.nll_per_pixel - w.nll_per_pixel, e0 = excess(before), e1 = excess(w);
+  // The excess is the NLL less what the profile itself expects: below it where the profile is too
+  // wide, above where too narrow, the two cancelling in the average. A fit that mends where the
+  // model was too wide takes away the part that hid what is still too narrow.
+  const std::string parts = fmt::format(
+      "over range x reflectivity bins, {} is {:+.4f} nats a pixel where its NLL lies below its expectation (too "
+      "wide or too unsure there) and {:+.4f} where above (too narrow or too sure); {} {:+.4f} and {:+.4f}",
+      before.profile, before.excess_below, before.excess_above, w.profile, w.excess_below, w.excess_above);
+  if (lower > 0.0 && std::abs(e1) > std::abs(e0) + 1.0) {
+    return fmt::format(
+        "{} fits better than {} (NLL {:.4f} a pixel lower) although its excess moved from {:+.1f} to {:+.1f} "
+        "standard errors: the excess is the NLL less what each profile expects of itself, and where one region is "
+        "too wide and another too narrow the two cancel in the average ({}). Rank profiles by NLL; the failing "
+        "regions say where each still errs.",
+        w.profile, before.profile, lower, e0, e1, parts);
   }
+  if (lower < 0.0 && std::abs(e1) + 1.0 < std::abs(e0)) {
+    return fmt::format(
+        "{} fits worse than {} (NLL {:.4f} a pixel higher) although its excess is nearer 0 ({:+.1f} against "
+        "{:+.1f} standard errors): a wider model expects a higher NLL and can meet it while misfitting ({}). Rank "
+        "profiles by NLL; the failing regions say where each errs.",
+        w.profile, before.profile, -lower, e1, e0, parts);
+  }
+  return "";
+}
+
+void note_waterfall(std::vector<WaterfallStep>& steps) {
+  for (size_t k = 1; k < steps.size(); ++k) steps[k].note = excess_note(steps[k - 1], steps[k]);
 }
 
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps) {

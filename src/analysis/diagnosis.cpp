@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 
 #include "effect_fit.h"
+#include "lidartwin/analysis/compare_report.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
 #include "noise_laws.h"
 
@@ -412,6 +413,10 @@ void explain_remaining(const Search& s, Diagnosis& d) {
   const MisfitSummary& r = remaining.summary;
   d.remaining_excess_se = r.nll_se > 0 ? (r.nll_per_pixel - r.nll_expected) / r.nll_se : 0.0;
   const bool fitted = !d.selected.empty() || !d.replace.empty() || !d.parameter_misfit.empty();
+  if (fitted) {
+    d.remaining_note = excess_note(waterfall_step("the profile", s.table, s.misfit),
+                                   waterfall_step("the fitted model", final_table, remaining));
+  }
   if (fitted && d.remaining_failing > 0) {
     // The case: a divergence fitted beside a wrong noise law came out 0.00192 [0.00191,
     // 0.00193] against a true 0.00227. Curvature intervals are conditional on the rest of the model.

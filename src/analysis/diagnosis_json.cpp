@@ -100,17 +100,19 @@ nlohmann::json diagnosis_json(const Diagnosis& d) {
   }
   nlohmann::json replace = nlohmann::json::array();
   for (const Replacement& r : d.replace) replace.push_back(replacement_json(r));
-  return {{"verdict", d.verdict},
-          {"not_selected", not_selected},
-          {"shared", shared},
-          {"ranked", ranked},
-          {"selected", selected},
-          {"pixels", d.pixels},
-          {"unexplained", unexplained},
-          {"parameter_misfit", refits},
-          {"replace", replace},
-          {"remaining", {{"failing_regions", d.remaining_failing}, {"excess_se", d.remaining_excess_se}}},
-          {"intervals_caveat", d.intervals_caveat}};
+  return {
+      {"verdict", d.verdict},
+      {"not_selected", not_selected},
+      {"shared", shared},
+      {"ranked", ranked},
+      {"selected", selected},
+      {"pixels", d.pixels},
+      {"unexplained", unexplained},
+      {"parameter_misfit", refits},
+      {"replace", replace},
+      {"remaining",
+       {{"failing_regions", d.remaining_failing}, {"excess_se", d.remaining_excess_se}, {"note", d.remaining_note}}},
+      {"intervals_caveat", d.intervals_caveat}};
 }
 
 std::string bound_note(const FittedParameter& p) {

@@ -277,6 +277,7 @@ void print_diagnosis(const Diagnosis& diagnosis, const std::string& next_command
   for (const NotSelected& n : diagnosis.not_selected) std::printf("  %s\n", n.sentence.c_str());
   for (const UnexplainedMisfit& u : diagnosis.unexplained) std::printf("  unexplained: %s\n", u.sentence.c_str());
   if (!diagnosis.intervals_caveat.empty()) std::printf("  %s\n", diagnosis.intervals_caveat.c_str());
+  if (!diagnosis.remaining_note.empty()) std::printf("  %s\n", diagnosis.remaining_note.c_str());
   if (!next_command.empty()) std::printf("  next: %s\n", next_command.c_str());
 }
 

@@ -66,6 +66,9 @@ struct WaterfallStep {
 // material_names: as failing_runs takes them.
 WaterfallStep waterfall_step(const std::string& profile, const PixelTable& table, const Misfit& misfit,
                              const std::vector<std::string>& material_names = {});
+// Where `after` fits better than `before` but its excess moved away from 0, or worse while nearer
+// 0: why, with both steps' parts of the excess; empty otherwise.
+std::string excess_note(const WaterfallStep& before, const WaterfallStep& after);
 // Each step's note against the one before it (WaterfallStep::note).
 void note_waterfall(std::vector<WaterfallStep>& steps);
 nlohmann::json waterfall_json(const std::vector<WaterfallStep>& steps);

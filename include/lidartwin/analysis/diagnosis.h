@@ -122,6 +122,9 @@ struct Diagnosis {
   // What the fitted chain still fails: regions at alpha, and the NLL's excess in standard errors.
   size_t remaining_failing = 0;
   double remaining_excess_se = 0.0;
+  // Where the fitted chain's NLL is lower but its excess further from 0 than the profile's (or the
+  // reverse): why (excess_note).
+  std::string remaining_note;
   // Said when something was fitted and misfit remains: the intervals hold given the rest of the
   // model, which is then wrong somewhere, and a fitted value can lie outside them (FittedParameter).
   std::string intervals_caveat;
