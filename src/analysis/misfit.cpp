@@ -159,8 +159,7 @@ double poisson_two_sided(double k, double lambda) {
   if (lambda > 200.0) return two_sided_normal((k - lambda) / std::sqrt(lambda));
   const auto pmf = [lambda](double j) { return std::exp(j * std::log(lambda) - lambda - std::lgamma(j + 1.0)); };
   // The tail k lies in, summed directly: its complement, 1 - (a sum that rounds to 1), can come out
-  // below 0, and a negative p read as "not tested" hid the bins that misfit most (851 outliers
-  // where 2.8 were expected).
+  // below 0, which reads as "not tested", in exactly the bins that misfit most.
   double below = 0.0;  // P(X <= k)
   double above = 0.0;  // P(X >= k)
   if (k <= lambda) {
