@@ -185,7 +185,9 @@ std::optional<Step> best_replacement(const Search& s, const Diagnosis& d, const 
     step.candidate =
         fit(s.table, s.rows, Placement{s.chain, index, true}, s.nll, step.spec, nullptr, Intervals::kWithout);
     score_replacement(step.candidate, step, s.log_n());
-    if (!kept.empty()) {
+    // Only a law that already helps given the chain can win a round; refitting the added effects
+    // beside one that does not would cost a diagnosis 2-3 fits a round for nothing.
+    if (!kept.empty() && step.candidate.delta_bic >= s.options.min_delta_bic) {
       s.say(
           fmt::format("round {}: {} in place of the noise law: delta BIC {:+.0f}; refitting the added effects "
                       "beside it",
