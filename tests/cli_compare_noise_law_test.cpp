@@ -40,6 +40,17 @@ fs::path fresh_dir(const std::string& name) {
   return dir;
 }
 
+// The independent generator's room in `dir` with `args`, and compare's inputs for it.
+std::string generated_room(const fs::path& dir, const std::string& args) {
+  EXPECT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() + " " +
+                         args + " > /dev/null")
+                            .c_str()),
+            0)
+      << args;
+  return " --capture " + (dir / "capture.pcap").string() + " --metadata " + (dir / "metadata.json").string() +
+         " --scene " + (dir / "scene.gltf").string() + " --pose " + (dir / "pose.tum").string();
+}
+
 void expect_covers(const nlohmann::json& params, const std::string& name, double truth) {
   ASSERT_TRUE(params.contains(name)) << params.dump(1);
   const auto& p = params[name];
@@ -98,14 +109,8 @@ void expect_held_out_fit(const std::string& inputs, const std::string& base, con
 // effect added on top of it can lower the spread where the signal is strong.
 TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalAloneReplacesTheLinearLawBySignalPrecision) {
   const fs::path dir = fresh_dir("e2");
-  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                         " --frames 5 --seed 2 --sigma0 0.003 --slope 0 --snr-k 0.3 > /dev/null")
-                            .c_str()),
-            0);
+  const std::string inputs = generated_room(dir, "--frames 5 --seed 2 --sigma0 0.003 --slope 0 --snr-k 0.3");
   const nlohmann::json truth = read_json(dir / "truth.json");
-  const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                             (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
-                             " --pose " + (dir / "pose.tum").string();
   const test::CliRun r =
       run_cli("compare" + inputs + " --frames 3 --no-plots --diagnose --profile os1-32-paper --out " +
               (dir / "report").string());
@@ -262,14 +267,9 @@ TEST(CompareNoiseLaw, ADatasheetCaptureAgainstTheLinearLawReplacesItByTheTableAn
 // refitted beside each law (diagnosis' refit_with_kept) E2 wins, at the generator's values.
 TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalBesideIncidenceReplacesTheTableBySignalPrecision) {
   const fs::path dir = fresh_dir("e2_incidence");
-  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                         " --frames 5 --seed 4 --sigma0 0.003 --slope 0 --snr-k 0.3 --divergence 0.003 > /dev/null")
-                            .c_str()),
-            0);
+  const std::string inputs =
+      generated_room(dir, "--frames 5 --seed 4 --sigma0 0.003 --slope 0 --snr-k 0.3 --divergence 0.003");
   const nlohmann::json truth = read_json(dir / "truth.json");
-  const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                             (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
-                             " --pose " + (dir / "pose.tum").string();
   const test::CliRun r =
       run_cli("compare" + inputs + " --no-plots --diagnose --profile " +
               table_profiles::table_profile("os1-64").string() + " --out " + (dir / "report").string());
@@ -295,14 +295,8 @@ TEST(CompareNoiseLaw, ASpreadThatFollowsTheSignalBesideIncidenceReplacesTheTable
 // and at the table's last knot (100 m) cover the generator's 10 and 150 mm.
 TEST(CompareNoiseLaw, ALinearSpreadAgainstTheDatasheetTableReplacesTheTableByTheLinearLaw) {
   const fs::path dir = fresh_dir("linear");
-  ASSERT_EQ(std::system(("/usr/bin/python3 " + kSource + "/tests/tools/independent_capture.py " + dir.string() +
-                         " --frames 3 --seed 1 > /dev/null")
-                            .c_str()),
-            0);
+  const std::string inputs = generated_room(dir, "--frames 3 --seed 1");
   const nlohmann::json truth = read_json(dir / "truth.json")["range_noise"];
-  const std::string inputs = " --capture " + (dir / "capture.pcap").string() + " --metadata " +
-                             (dir / "metadata.json").string() + " --scene " + (dir / "scene.gltf").string() +
-                             " --pose " + (dir / "pose.tum").string();
   const test::CliRun r =
       run_cli("compare" + inputs + " --no-plots --diagnose --profile " +
               table_profiles::table_profile("os1-64").string() + " --out " + (dir / "report").string());
