@@ -2,6 +2,7 @@
 #include "lidartwin/analysis/misfit.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -181,6 +182,22 @@ struct RawTests {
   double bias = -1, spread = -1, detection = -1, outliers = -1;  // -1: not tested
 };
 
+// The spread's ratio^2 to the model's: residuals about a temporal mean weigh by their share of the
+// degrees of freedom (1 elsewhere).
+double spread_ratio2(const Acc& a) {
+  const double z_mean = a.z / static_cast<double>(a.inliers);
+  return std::max(a.wz2 - a.weight * z_mean * z_mean, 0.0) / a.model_dof;
+}
+
+// Its degrees of freedom. A Gaussian's z^2 has variance 2 E[z^2]^2; E2's tails give it more (a
+// mixture's z^2 is heavy tailed), and the chi-square's degrees of freedom shrink by as much
+// (Satterthwaite).
+double spread_dof(const Acc& a) {
+  const auto n = static_cast<double>(a.inliers);
+  const double heavier = a.z2 > 0.0 ? std::max(n * a.z2_variance / (2.0 * a.z2 * a.z2), 1.0) : 1.0;
+  return a.dof_weight * a.dof_weight / a.dof_weight2 / heavier;
+}
+
 BinMisfit summarize(const Acc& a, RawTests& raw) {
   BinMisfit b;
   b.pixels = a.pixels;
@@ -217,8 +234,7 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     // model_dof.
     const double v_bias = (a.z2 + a.sheppard) / n;
     const double z_mean = a.z / n;
-    // Residuals about a temporal mean weigh by their share of the degrees of freedom (1 elsewhere).
-    const double ratio2 = std::max(a.wz2 - a.weight * z_mean * z_mean, 0.0) / a.model_dof;
+    const double ratio2 = spread_ratio2(a);
     b.spread_ratio = std::sqrt(ratio2);
     if (a.reference2 > 0.0 && a.dof_weight > 0.0) {
       // Map mode: the millimetres as the ratio weighs its pixels. Unweighted, the few returns whose
@@ -231,15 +247,63 @@ BinMisfit summarize(const Acc& a, RawTests& raw) {
     b.misfit_spread = ratio2 > 0.0 ? n * (-0.5 * std::log(ratio2) + 0.5 * ratio2 - 0.5) : 0.0;
     if (a.inliers >= kMinTested) {
       raw.bias = two_sided_normal(a.z / std::sqrt(n * v_bias));
-      // A Gaussian's z^2 has variance 2 E[z^2]^2; E2's tails give it more (a mixture's z^2 is heavy
-      // tailed), and the chi-square's degrees of freedom shrink by as much (Satterthwaite).
-      const double heavier = a.z2 > 0.0 ? std::max(n * a.z2_variance / (2.0 * a.z2 * a.z2), 1.0) : 1.0;
-      const double dof = a.dof_weight * a.dof_weight / a.dof_weight2 / heavier;
+      const double dof = spread_dof(a);
       const double cdf = chi2_cdf(dof * ratio2, dof - 1.0);
       raw.spread = std::min(1.0, 2.0 * std::min(cdf, 1.0 - cdf));
     }
   }
   return b;
+}
+
+// ---- a pair given its single features --------------------------------------------------------
+
+// Two-sided p of k successes in n trials of probability q (normal where n q (1 - q) > 200).
+double binomial_two_sided(double k, double n, double q) {
+  if (n <= 0.0 || q <= 0.0 || q >= 1.0) return 1.0;
+  if (n * q * (1.0 - q) > 200.0) return two_sided_normal((k - n * q) / std::sqrt(n * q * (1.0 - q)));
+  const auto pmf = [&](double j) {
+    return std::exp(std::lgamma(n + 1.0) - std::lgamma(j + 1.0) - std::lgamma(n - j + 1.0) + j * std::log(q) +
+                    (n - j) * std::log1p(-q));
+  };
+  double below = 0.0, above = 0.0;
+  for (double j = 0.0; j <= k; j += 1.0) below += pmf(j);
+  for (double j = k; j <= n; j += 1.0) above += pmf(j);
+  return std::clamp(2.0 * std::min(below, above), 0.0, 1.0);
+}
+
+// A pair's bin (range 20-35 m within azimuth 315-360 degrees) is a part of each of its features'
+// single bins. Where a single bin fails, its pair bins fail with it at their share of the
+// pixels, and say nothing the single does not: the question is whether the pair departs from
+// the single's own measured level, the single taken as the model. Tested as that, with the part's
+// covariance with its whole taken out: the pair's count given the single's (binomial, exact), its
+// mean z against the single's (variance v (1/n_pair - 1/n_single)), its spread's ratio against the
+// single's (the chi-square's degrees of freedom grown by 1 / (1 - n_pair / n_single)).
+RawTests given_single(const Acc& pair, const Acc& single) {
+  RawTests raw;
+  if (pair.pixels >= kMinTested && single.pixels > pair.pixels) {
+    const double misses = static_cast<double>(pair.pixels - pair.returns);
+    const double single_misses = static_cast<double>(single.pixels - single.returns);
+    const double expected = static_cast<double>(pair.pixels) - pair.pd;
+    const double single_expected = static_cast<double>(single.pixels) - single.pd;
+    raw.detection = single_expected > 0.0 ? binomial_two_sided(misses, single_misses, expected / single_expected) : 1.0;
+  }
+  if (pair.returns >= kMinTested && single.returns > pair.returns && single.outliers_expected > 0.0) {
+    raw.outliers = binomial_two_sided(static_cast<double>(pair.outliers), static_cast<double>(single.outliers),
+                                      pair.outliers_expected / single.outliers_expected);
+  }
+  if (pair.inliers >= kMinTested && single.inliers > pair.inliers) {
+    const auto n = static_cast<double>(pair.inliers), n_single = static_cast<double>(single.inliers);
+    const double share = n / n_single;
+    const double v = (pair.z2 + pair.sheppard) / n;
+    raw.bias = two_sided_normal((pair.z / n - single.z / n_single) / std::sqrt(v * (1.0 / n - 1.0 / n_single)));
+    const double ratio2 = spread_ratio2(pair), single_ratio2 = spread_ratio2(single);
+    if (single_ratio2 > 0.0) {
+      const double dof = spread_dof(pair) / (1.0 - share);
+      const double cdf = chi2_cdf(dof * ratio2 / single_ratio2, dof - 1.0);
+      raw.spread = std::min(1.0, 2.0 * std::min(cdf, 1.0 - cdf));
+    }
+  }
+  return raw;
 }
 
 // ---- words ---------------------------------------------------------------------------------------
@@ -283,10 +347,11 @@ std::string number(double v) {
   return fmt::format("{:.3g}", v);
 }
 
-// A pair region that fails no more strongly than one of its features alone says nothing the
-// single feature does not ("range 13-20 m, beams 16-23" when all of 13-20 m fails alike): it is
-// dropped, so the report names the feature the misfit follows. A pair is kept when it fails at
-// least 1.5 times as strongly per pixel as each of its failing single-feature regions.
+// A pair region that fails no more strongly than one of its features alone adds little to the
+// single feature ("range 13-20 m, beams 16-23" when all of 13-20 m fails a little more there): it
+// is dropped, so the report names the feature the misfit follows. A pair is kept when it fails at
+// least 1.5 times as strongly per pixel as each of its failing single-feature regions (and, tested
+// before, departs from each of them by more than chance: given_single).
 void drop_explained_pairs(std::vector<FailingRegion>& failing) {
   std::map<std::pair<std::string, std::string>, double> single;  // (quantity, "name lo hi") -> per pixel
   const auto key = [](const std::string& quantity, const std::pair<std::string, std::array<double, 2>>& f) {
@@ -446,6 +511,15 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, con
     return b;
   };
   std::vector<RawTests> raw;
+  // Each single feature's bins' sums ("azimuth", bin) and, for each pair bin, its tests given each
+  // of its two features' single bins (given_single), and those bins' keys.
+  using BinKey = std::pair<std::string, int>;
+  std::map<BinKey, Acc> singles;
+  struct PairTests {
+    std::array<BinKey, 2> single;
+    std::array<RawTests, 2> given;
+  };
+  std::vector<PairTests> pair_tests;
   for (const auto& names : binnings(features, t.reference)) {
     std::vector<const Feature*> fs;
     for (const auto& name : names) fs.push_back(&features[name]);
@@ -473,21 +547,48 @@ Misfit find_misfit(const PixelTable& t, const PixelScores& s, size_t frames, con
       if (fs.size() > 1) bin.region.emplace_back(public_name(fs[1]->name), fs[1]->range_of(k1));
       out.bins.push_back(std::move(bin));
       raw.push_back(tests);
+      PairTests pair;
+      if (fs.size() == 1) {
+        pair.single[0] = {fs[0]->name, k0};
+        singles[pair.single[0]] = acc[k];
+      } else {
+        pair.single = {BinKey{fs[0]->name, k0}, BinKey{fs[1]->name, k1}};
+        for (size_t j = 0; j < 2; ++j) {
+          const auto it = singles.find(pair.single[j]);
+          if (it != singles.end()) pair.given[j] = given_single(acc[k], it->second);
+        }
+      }
+      pair_tests.push_back(std::move(pair));
     }
   }
   // Bonferroni over every test made.
   for (const RawTests& r : raw) sum.tests += (r.bias >= 0) + (r.spread >= 0) + (r.detection >= 0) + (r.outliers >= 0);
   const double m = static_cast<double>(std::max<size_t>(sum.tests, 1));
   const auto corrected = [m](double p) { return p < 0 ? 1.0 : std::min(1.0, p * m); };
+  std::set<std::pair<std::string, BinKey>> failing_singles;  // (quantity, single bin)
   for (size_t k = 0; k < out.bins.size(); ++k) {
     BinMisfit& b = out.bins[k];
     b.p_bias = corrected(raw[k].bias);
     b.p_spread = corrected(raw[k].spread);
     b.p_detection = corrected(raw[k].detection);
     b.p_outliers = corrected(raw[k].outliers);
+    const PairTests& pair = pair_tests[k];
+    // Which of a pair's tests a quantity is (given_single's RawTests, field by field).
+    const auto given = [](const RawTests& r, const std::string& q) {
+      return q == "bias" ? r.bias : q == "spread" ? r.spread : q == "detection" ? r.detection : r.outliers;
+    };
     const auto fail = [&](const char* quantity, double p, double measured, double predicted, double nats) {
       if (p >= alpha) return;
       const std::string q = quantity;
+      if (b.region.size() == 1) {
+        failing_singles.insert({q, pair.single[0]});
+      }
+      if (b.region.size() == 2) {
+        for (size_t j = 0; j < 2; ++j) {
+          // Explained by a failing single feature: the pair is that single's misfit at its share.
+          if (failing_singles.count({q, pair.single[j]}) && corrected(given(pair.given[j], q)) >= alpha) return;
+        }
+      }
       const size_t count = q == "detection" ? b.pixels : q == "outliers" ? b.returns : b.inliers;
       FailingRegion f{quantity, b.region, measured, predicted, b.pixels, p, nats, nats / static_cast<double>(count),
                       ""};

@@ -2,6 +2,7 @@
 // prediction fails nowhere; one with a wider spread in one range band fails there, in that band.
 #include "lidartwin/analysis/misfit.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -86,6 +87,50 @@ TEST(Misfit, MissesWhereTheModelIsCertainFailDetection) {
   EXPECT_EQ(m.failing.front().quantity, "detection");
   EXPECT_EQ(describe(m.failing.front().region), "beam 5");
   EXPECT_GT(m.summary.impossible_misses, 0u);
+}
+
+// The spread wider by `factor` in one azimuth band (columns 0-63: 315-360 degrees), and, when given,
+// only where the ideal range also lies in [range_lo, range_hi).
+PixelTable wider_in_azimuth(double factor, double range_lo = 0.0, double range_hi = 1e3) {
+  std::mt19937_64 rng(11);
+  PixelTable t = test::synthetic_layout();
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double ideal = static_cast<double>(t.ideal_range_m[i]);
+    const bool wider = t.column[i] < 64 && ideal >= range_lo && ideal < range_hi;
+    std::normal_distribution<double> noise(0.0, 0.02 * (wider ? factor : 1.0));
+    t.range_m[i] = static_cast<float>(std::round((ideal + noise(rng)) * 1000.0) / 1000.0);
+  }
+  return t;
+}
+
+bool names(const FailingRegion& f, const std::string& feature) {
+  return std::ranges::any_of(f.region, [&](const auto& r) { return r.first == feature; });
+}
+
+TEST(Misfit, ThePairsOfAFailingFeatureThatOnlyShareItsMisfitAreNotRegionsOfTheirOwn) {
+  // A spread 6 % wide over all of azimuth 315-360 degrees: its pair bins (that azimuth band at
+  // each range) carry the same 6 %, each measured on an eighth of the pixels, so some read twice
+  // the misfit per pixel by chance; none departs from the band's own spread beyond chance.
+  const PixelTable t = wider_in_azimuth(1.06);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, {});
+  ASSERT_FALSE(m.failing.empty());
+  EXPECT_EQ(describe(m.failing.front().region), "azimuth 315–360°") << m.failing.front().sentence;
+  for (const FailingRegion& f : m.failing) {
+    EXPECT_FALSE(f.region.size() == 2 && names(f, "azimuth")) << f.sentence;
+  }
+}
+
+TEST(Misfit, APairThatFailsBeyondItsFeaturesIsARegionOfItsOwn) {
+  // Wider only at range 20-35 m within azimuth 315-360 degrees: the pair is the misfit's place and
+  // leads; the azimuth band alone fails diluted.
+  const PixelTable t = wider_in_azimuth(1.5, 20.0, 35.0);
+  const Misfit m = find_misfit(t, score_pixels(t), 4, {});
+  ASSERT_FALSE(m.failing.empty());
+  const FailingRegion& worst = m.failing.front();
+  EXPECT_EQ(worst.quantity, "spread") << worst.sentence;
+  ASSERT_EQ(worst.region.size(), 2u) << worst.sentence;
+  EXPECT_TRUE(names(worst, "azimuth") && names(worst, "range")) << worst.sentence;
+  EXPECT_NEAR(worst.measured / worst.predicted, 1.5, 0.05) << worst.sentence;
 }
 
 }  // namespace
