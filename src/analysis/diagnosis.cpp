@@ -15,6 +15,7 @@
 #include "effect_fit.h"
 #include "lidartwin/analysis/compare_report.h"
 #include "lidartwin/analysis/pixel_likelihood.h"
+#include "lidartwin/error.h"
 #include "noise_laws.h"
 
 namespace lidartwin {
@@ -57,6 +58,8 @@ struct Search {
     return scores;
   }
   mutable PixelScores scores;
+  // The registry's candidates as the search began (a pool of pointers into them).
+  std::vector<analysis_detail::CandidateSpec> candidates = analysis_detail::candidate_specs();
 };
 
 constexpr std::string_view kTails = "signal_outliers";  // E2's tails (tails_apply)
@@ -300,15 +303,23 @@ bool tails_apply(const Search& s) {
   });
 }
 
-// Whether a candidate can change the likelihood against the table's reference. A pixel's own
-// temporal mean (static mode) carries every bias that does not change between frames, per-beam
-// offsets (E10) and a range walk (E3) among them, and there is no scene to say where edge partners
-// (E6), retroreflectors (E8) or the surface's tilt (E4) are: fitted there they could only come out
-// at nothing, and were listed with negative evidence.
+// Whether a candidate can change the likelihood against the table's reference: a pixel's own
+// temporal mean (static mode) hides what its card says it does.
 bool visible_against_reference(std::string_view effect, PixelTable::Reference reference) {
   if (reference != PixelTable::Reference::kTemporalMean) return true;
-  return effect != "beam_calibration" && effect != "range_walk" && effect != "mixed_pixels" && effect != "halo" &&
-         effect != "incidence";
+  const std::optional<EffectCard> card = effect_card(effect);
+  return card && card->seen_against_temporal_mean;
+}
+
+// Whether the chain has what the candidate needs before it (Effect::prerequisites: E2 reads the
+// signal radiometry gives): a profile without radiometry is not offered the signal's effects.
+bool placeable(const EffectChain& chain, const CandidateSpec& spec) {
+  try {
+    analysis_detail::with_candidate(chain, spec.start.is_null() ? nlohmann::json{{"name", spec.effect}} : spec.start);
+    return true;
+  } catch (const InputError&) {
+    return false;
+  }
 }
 
 // The rounds: every candidate of the pool fitted given the chain, and (until one is kept, where the
@@ -316,12 +327,13 @@ bool visible_against_reference(std::string_view effect, PixelTable::Reference re
 // strong evidence (delta BIC > min_delta_bic) and, for an added candidate, significant; a
 // replacement must also beat the round's best additive candidate. Returns the steps kept.
 std::vector<Step> search_steps(Search& s, Diagnosis& d) {
-  std::vector<const CandidateSpec*> pool;
+  std::vector<const CandidateSpec*> pool;  // into s.candidates
   const bool tails = tails_apply(s);
-  for (const CandidateSpec& spec : candidate_specs()) {
+  for (const CandidateSpec& spec : s.candidates) {
     const bool present = std::any_of(s.chain.effects().begin(), s.chain.effects().end(),
                                      [&](const auto& e) { return e->name() == spec.effect; });
-    if (!present && (spec.effect != kTails || tails) && visible_against_reference(spec.effect, s.table.reference)) {
+    if (!present && (spec.effect != kTails || tails) && visible_against_reference(spec.effect, s.table.reference) &&
+        placeable(s.chain, spec)) {
       pool.push_back(&spec);
     }
   }

@@ -20,30 +20,16 @@
 
 namespace lidartwin::analysis_detail {
 
-const std::vector<CandidateSpec>& candidate_specs() {
-  static const std::vector<CandidateSpec> specs{
-      {"signal_precision", {{"k_m", 0.05, 0.05}}},
-      // E2's tails: how often at low signal (a minority of the returns, at most half: when every
-      // weak return would be in the tail, the spread is E2's own, which is a candidate of its own;
-      // against a map's references, whose errors are heavier-tailed than Gaussian, the two
-      // otherwise tie, the tails at a share of 1), and how wide.
-      {"signal_outliers",
-       {{"probability", 0.05, 0.05, {}, 0.5}, {"half_signal_photons", 10.0, 10.0}, {"sigma_m", 0.1, 0.05}}},
-      {"range_walk", {{"walk_m", 0.0, 0.005}, {"retro_offset_m", 0.0, 0.01}}},
-      {"incidence", {{"divergence_rad", 0.002, 0.001}, {"bias_factor", 0.0, 0.2}}},
-      {"drift", {{"offset_m", 0.0, 0.005}, {"warmup_offset_m", 0.0, 0.01}, {"warmup_time_s", 1.0, 0.5}}},
-      {"dropout", {{"threshold_photons", 1.0, 1.0}, {"width", 0.3, 0.1}}},
-      // The pulse length and the second return's threshold shape what a dual profile's RANGE2
-      // shows, which the likelihood does not score yet: left at their defaults.
-      {"mixed_pixels", {{"divergence_rad", 0.002, 0.001}}},
-      // The halo's reach (decay_rows) and its returns' spread and strength stay at their defaults:
-      // its rates beside the retroreflectors are what the likelihood sees most clearly.
-      {"halo", {{"probability", 0.1, 0.05}, {"dropout_probability", 0.0, 0.05}}},
-      // Per-beam offsets and scales (E10): fitted in closed form (fit_beam_calibration), not by
-      // BOBYQA over 128 numbers.
-      {"beam_calibration", {}},
-  };
+std::vector<CandidateSpec> candidate_specs() {
+  std::vector<CandidateSpec> specs;
+  for (const std::string& name : candidate_effects()) specs.push_back({name, effect_card(name)->fit, nullptr});
   return specs;
+}
+
+std::optional<CandidateSpec> candidate_spec(std::string_view effect) {
+  const std::optional<EffectCard> card = effect_card(effect);
+  if (!card || !card->candidate) return std::nullopt;
+  return CandidateSpec{std::string(effect), card->fit, nullptr};
 }
 
 nlohmann::json::json_pointer pointer(const std::string& name) { return nlohmann::json::json_pointer("/" + name); }
@@ -55,14 +41,11 @@ nlohmann::json::json_pointer pointer(const std::string& name) { return nlohmann:
 // would then be reported as a misfit of the profile's own noise.
 std::optional<CandidateSpec> refit_spec(const Effect& effect, bool range_noise) {
   const std::string name(effect.name());
-  if (name == "beam_calibration") return std::nullopt;  // its closed form fits it as a missing effect only
-  for (CandidateSpec spec : candidate_specs()) {
-    if (spec.effect != name) continue;
-    // A profile's incidence refits its footprint's saturation too (from the law, s = 0, in which
-    // the saturating form is nested): real captures ask for it (docs/compare-report.md, "A
-    // footprint that saturates"). The search's candidate keeps the law, whose form the simulated
-    // captures follow, and one parameter fewer.
-    if (name == "incidence") spec.free.push_back({"saturation", 0.1, 0.1});
+  const std::optional<EffectCard> card = effect_card(name);
+  if (card && card->candidate) {
+    if (!card->refit_in_place) return std::nullopt;
+    CandidateSpec spec{name, card->fit, nullptr};
+    spec.free.insert(spec.free.end(), card->refit_also.begin(), card->refit_also.end());
     return spec;
   }
   if (!range_noise || (name != "range_noise_linear" && name != "range_noise_piecewise")) return std::nullopt;

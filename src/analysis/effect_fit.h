@@ -15,24 +15,19 @@
 
 namespace lidartwin::analysis_detail {
 
-// A parameter a fit moves: its starting value and the scale of a first step (NLopt's BOBYQA works
-// in these units). `tied`: other parameters that take the same value (a datasheet table's plateau
-// is two knots with one sigma).
-struct FreeParameter {
-  std::string name;
-  double start;
-  double step;
-  std::vector<std::string> tied = {};
-  double most = std::numeric_limits<double>::infinity();  // below the effect's own upper bound, where the search needs
-};
+// A parameter a fit moves (the effect's card, effect_card.h, gives a candidate's).
+using FreeParameter = FitStart;
 struct CandidateSpec {
   std::string effect;
   std::vector<FreeParameter> free;
   nlohmann::json start = nullptr;  // the effect as it starts (fixed parameters included); null: defaults
 };
 
-// What the search tries: each library effect with the parameters it fits.
-const std::vector<CandidateSpec>& candidate_specs();
+// What the search tries: each registered effect whose card makes it a candidate, with the
+// parameters its card fits, in the registry's order.
+std::vector<CandidateSpec> candidate_specs();
+// The candidate named `effect`; nullopt for an effect that is none.
+std::optional<CandidateSpec> candidate_spec(std::string_view effect);
 
 // A parameter's place in its effect's JSON: a key, or a path below it ("points_m/2/1").
 nlohmann::json::json_pointer pointer(const std::string& name);

@@ -24,10 +24,8 @@ using analysis_detail::Placement;
 // catalogue id; anything else (unknown, or a library effect whose parameters are not a handful of
 // numbers) is refused.
 nlohmann::json fittable_document(const std::string& name) {
-  const auto listed = std::find_if(candidate_specs().begin(), candidate_specs().end(),
-                                   [&](const CandidateSpec& s) { return name == s.effect; });
   const std::optional<std::string> catalogue = effect_catalogue(name);
-  if (listed == candidate_specs().end() && (!catalogue || !catalogue->empty())) {
+  if (!analysis_detail::candidate_spec(name) && (!catalogue || !catalogue->empty())) {
     throw InputError(
         fmt::format("--add {}: not an effect the fit can estimate; fittable: {}, and effects "
                     "registered without a catalogue id",
@@ -97,10 +95,8 @@ Candidate add_effect(Fitting& f, const nlohmann::json& effect) {
   for (const auto& e : f.chain.effects()) {
     if (e->name() == name) throw InputError(fmt::format("--add {}: the profile's chain already has it", name));
   }
-  const auto listed = std::find_if(candidate_specs().begin(), candidate_specs().end(),
-                                   [&](const CandidateSpec& s) { return name == s.effect; });
-  f.specs.push_back(listed != candidate_specs().end() && effect.size() == 1 ? *listed
-                                                                            : analysis_detail::spec_of(effect));
+  const std::optional<CandidateSpec> listed = analysis_detail::candidate_spec(name);
+  f.specs.push_back(listed && effect.size() == 1 ? *listed : analysis_detail::spec_of(effect));
   Candidate c = fit(f.table, f.rows, Placement{f.chain, {}}, f.nll, f.specs.back());
   f.chain = analysis_detail::with_candidate(f.chain, c.effect_json);
   f.nll -= c.delta_nll;

@@ -23,7 +23,14 @@ using json_reader::format_number;
 // One effect as documented: built alone with its defaults (after radiometry when it needs it).
 // Effects without defaults for some parameters (a sigma(r) law) report what they require.
 nlohmann::json describe_effect(const std::string& name) {
-  nlohmann::json entry = {{"name", name}, {"catalogue", effect_catalogue(name).value_or("")}};
+  const EffectCard card = effect_card(name).value_or(EffectCard{});
+  nlohmann::json entry = {{"name", name}, {"catalogue", card.catalogue}};
+  if (!card.note.empty()) entry["note"] = card.note;
+  if (card.candidate) {
+    nlohmann::json fitted = nlohmann::json::array();
+    for (const FitStart& p : card.fit) fitted.push_back(p.name);
+    entry["diagnosis_fits"] = fitted;  // the parameters the diagnosis fits when it tries the effect
+  }
   nlohmann::json chain = nlohmann::json::array();
   if (name != "radiometry") chain.push_back({{"name", "radiometry"}});
   chain.push_back({{"name", name}});
@@ -47,22 +54,17 @@ nlohmann::json describe_effect(const std::string& name) {
   return entry;
 }
 
-// Which part of a catalogue entry an effect models, where two share one or one has none
-// (lidar-physics.md E16 is "Window, near-range and blockage artifacts"; section 2.2 the channels).
-const char* catalogue_note(const std::string& name) {
-  if (name == "range_limits") return "E16's near-range part (and E5's range part): returns beyond the range window";
-  if (name == "window") return "E16's window part: dirt, water or blockage on the window";
-  if (name == "shot_noise") return "no catalogue id: lidar-physics.md 2.2, photon noise of SIGNAL and NEAR_IR";
-  if (name == "radiometry") return "no catalogue id: lidar-physics.md 2.2, the expected SIGNAL and NEAR_IR";
-  return nullptr;
-}
-
 void print_table(const nlohmann::json& effects) {
   for (const nlohmann::json& e : effects) {
     const std::string catalogue = e["catalogue"].get<std::string>();
     std::printf("%s%s\n", e["name"].get<std::string>().c_str(),
                 catalogue.empty() ? "" : fmt::format(" ({})", catalogue).c_str());
-    if (const char* note = catalogue_note(e["name"].get<std::string>())) std::printf("    %s\n", note);
+    if (e.contains("note")) std::printf("    %s\n", e["note"].get<std::string>().c_str());
+    if (e.contains("diagnosis_fits")) {
+      const auto fits = e["diagnosis_fits"].get<std::vector<std::string>>();
+      std::printf("    compare --diagnose tries it as a missing effect, fitting %s\n",
+                  fits.empty() ? "it in closed form" : fmt::format("{}", fmt::join(fits, ", ")).c_str());
+    }
     if (e.contains("requires")) {
       std::printf("    needs values: %s\n", e["requires"].get<std::string>().c_str());
       continue;

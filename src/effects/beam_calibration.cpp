@@ -173,4 +173,10 @@ std::unique_ptr<Effect> make_beam_calibration(const nlohmann::json& params, cons
   return std::make_unique<BeamCalibration>(u);
 }
 
+// Per-beam offsets and scales: fitted in closed form (fit_beam_calibration), not by BOBYQA over 128
+// numbers, and only as a missing effect. A pixel's temporal mean carries them.
+EffectCard beam_calibration_card() {
+  return {.catalogue = "E10", .candidate = true, .refit_in_place = false, .seen_against_temporal_mean = false};
+}
+
 }  // namespace lidartwin::effects_detail

@@ -1,5 +1,5 @@
 #pragma once
-// The factories of the effects built into lidartwin, one per src/effects/<effect>.cpp. The
+// The factories and cards of the effects built into lidartwin, one each per src/effects/<effect>.cpp. The
 // registry lists them explicitly: self-registration from static initializers is dropped by the
 // linker when nothing else references the object file of a static library.
 #include <memory>
@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/effects/effect.h"
+#include "lidartwin/effects/effect_card.h"
 #include "lidartwin/json/json_reader.h"
 
 namespace lidartwin::effects_detail {
@@ -33,5 +34,25 @@ std::unique_ptr<Effect> make_fog(const nlohmann::json& params, const Location& a
 std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, const Location& at);      // E14
 std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, const Location& at);        // section 2.2
 std::unique_ptr<Effect> make_window(const nlohmann::json& params, const Location& at);            // E16
+
+EffectCard radiometry_card();
+EffectCard range_noise_linear_card();
+EffectCard range_noise_piecewise_card();
+EffectCard signal_precision_card();
+EffectCard signal_outliers_card();
+EffectCard range_walk_card();
+EffectCard incidence_card();
+EffectCard drift_card();
+EffectCard dropout_card();
+EffectCard mixed_pixels_card();
+EffectCard halo_card();
+EffectCard range_quantization_card();
+EffectCard beam_calibration_card();
+EffectCard vibration_card();
+EffectCard fog_card();
+EffectCard false_alarms_card();
+EffectCard shot_noise_card();
+EffectCard range_limits_card();
+EffectCard window_card();
 
 }  // namespace lidartwin::effects_detail

@@ -59,4 +59,10 @@ std::unique_ptr<Effect> make_drift(const nlohmann::json& params, const Location&
   return Drift::create(params, at);
 }
 
+EffectCard drift_card() {
+  return {.catalogue = "E12",
+          .candidate = true,
+          .fit = {{"offset_m", 0.0, 0.005}, {"warmup_offset_m", 0.0, 0.01}, {"warmup_time_s", 1.0, 0.5}}};
+}
+
 }  // namespace lidartwin::effects_detail

@@ -123,4 +123,8 @@ std::unique_ptr<Effect> make_dropout(const nlohmann::json& params, const Locatio
   return Dropout::create(params, at);
 }
 
+EffectCard dropout_card() {
+  return {.catalogue = "E5", .candidate = true, .fit = {{"threshold_photons", 1.0, 1.0}, {"width", 0.3, 0.1}}};
+}
+
 }  // namespace lidartwin::effects_detail

@@ -78,4 +78,6 @@ std::unique_ptr<Effect> make_false_alarms(const nlohmann::json& params, const Lo
   return FalseAlarms::create(params, at);
 }
 
+EffectCard false_alarms_card() { return {.catalogue = "E14"}; }
+
 }  // namespace lidartwin::effects_detail

@@ -79,4 +79,6 @@ class Fog final : public TabledEffect<Fog, FogParameters> {
 
 std::unique_ptr<Effect> make_fog(const nlohmann::json& params, const Location& at) { return Fog::create(params, at); }
 
+EffectCard fog_card() { return {.catalogue = "E13"}; }
+
 }  // namespace lidartwin::effects_detail

@@ -93,4 +93,14 @@ class Halo final : public TabledEffect<Halo, HaloParameters> {
 
 std::unique_ptr<Effect> make_halo(const nlohmann::json& params, const Location& at) { return Halo::create(params, at); }
 
+// The halo's reach (decay_rows) and its returns' spread and strength stay at their defaults: its
+// rates beside the retroreflectors are what the likelihood sees most clearly, and without a scene
+// the retroreflectors are unknown.
+EffectCard halo_card() {
+  return {.catalogue = "E8",
+          .candidate = true,
+          .fit = {{"probability", 0.1, 0.05}, {"dropout_probability", 0.0, 0.05}},
+          .seen_against_temporal_mean = false};
+}
+
 }  // namespace lidartwin::effects_detail

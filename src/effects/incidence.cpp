@@ -84,4 +84,16 @@ std::unique_ptr<Effect> make_incidence(const nlohmann::json& params, const Locat
   return Incidence::create(params, at);
 }
 
+// A profile's incidence refits its footprint's saturation too (from the law, s = 0, in which the
+// saturating form is nested): real captures ask for it (docs/compare-report.md, "A footprint that
+// saturates"). The search's candidate keeps the law, whose form the simulated captures follow, and
+// one parameter fewer. Without a scene the surface's tilt is unknown.
+EffectCard incidence_card() {
+  return {.catalogue = "E4",
+          .candidate = true,
+          .fit = {{"divergence_rad", 0.002, 0.001}, {"bias_factor", 0.0, 0.2}},
+          .refit_also = {{"saturation", 0.1, 0.1}},
+          .seen_against_temporal_mean = false};
+}
+
 }  // namespace lidartwin::effects_detail

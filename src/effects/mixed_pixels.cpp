@@ -237,4 +237,14 @@ std::unique_ptr<Effect> make_mixed_pixels(const nlohmann::json& params, const Lo
   return MixedPixels::create(params, at);
 }
 
+// The pulse length and the second return's threshold shape what a dual profile's RANGE2 shows,
+// which the likelihood does not score yet: left at their defaults. Without a scene the edge
+// partners are unknown.
+EffectCard mixed_pixels_card() {
+  return {.catalogue = "E6",
+          .candidate = true,
+          .fit = {{"divergence_rad", 0.002, 0.001}},
+          .seen_against_temporal_mean = false};
+}
+
 }  // namespace lidartwin::effects_detail

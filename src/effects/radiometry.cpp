@@ -126,4 +126,10 @@ std::unique_ptr<Effect> make_radiometry(const nlohmann::json& params, const Loca
   return Radiometry::create(params, at);
 }
 
+// No catalogue id: lidar-physics.md 2.2's channels, not a range error. The analysis refits it by
+// its own closed forms (refit_radiometry), not as a candidate.
+EffectCard radiometry_card() {
+  return {.catalogue = "", .note = "no catalogue id: lidar-physics.md 2.2, the expected SIGNAL and NEAR_IR"};
+}
+
 }  // namespace lidartwin::effects_detail

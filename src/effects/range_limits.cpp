@@ -109,4 +109,8 @@ std::unique_ptr<Effect> make_range_limits(const nlohmann::json& params, const Lo
   return RangeLimits::create(params, at);
 }
 
+EffectCard range_limits_card() {
+  return {.catalogue = "E16", .note = "E16's near-range part (and E5's range part): returns beyond the range window"};
+}
+
 }  // namespace lidartwin::effects_detail

@@ -42,4 +42,8 @@ std::unique_ptr<Effect> make_range_noise_linear(const nlohmann::json& params, co
   return RangeNoiseLinear::create(params, at);
 }
 
+// The range noise's forms are the analysis' noise laws (noise_laws.h), refitted only on request
+// (compare --refit-noise), never added: a profile has one.
+EffectCard range_noise_linear_card() { return {.catalogue = "E1"}; }
+
 }  // namespace lidartwin::effects_detail

@@ -156,4 +156,7 @@ std::unique_ptr<Effect> make_range_noise_piecewise(const nlohmann::json& params,
   return std::make_unique<RangeNoisePiecewise>(read_knots(params, at));
 }
 
+// A noise law (noise_laws.h), as range_noise_linear.
+EffectCard range_noise_piecewise_card() { return {.catalogue = "E1"}; }
+
 }  // namespace lidartwin::effects_detail

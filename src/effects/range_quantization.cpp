@@ -59,4 +59,6 @@ std::unique_ptr<Effect> make_range_quantization(const nlohmann::json& params, co
   return RangeQuantization::create(params, at);
 }
 
+EffectCard range_quantization_card() { return {.catalogue = "E9"}; }
+
 }  // namespace lidartwin::effects_detail

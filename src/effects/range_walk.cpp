@@ -59,4 +59,12 @@ std::unique_ptr<Effect> make_range_walk(const nlohmann::json& params, const Loca
   return RangeWalk::create(params, at);
 }
 
+// A pixel's temporal mean carries a walk, which does not change between frames.
+EffectCard range_walk_card() {
+  return {.catalogue = "E3",
+          .candidate = true,
+          .fit = {{"walk_m", 0.0, 0.005}, {"retro_offset_m", 0.0, 0.01}},
+          .seen_against_temporal_mean = false};
+}
+
 }  // namespace lidartwin::effects_detail

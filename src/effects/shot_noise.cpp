@@ -71,4 +71,8 @@ std::unique_ptr<Effect> make_shot_noise(const nlohmann::json& params, const Loca
   return ShotNoise::create(params, at);
 }
 
+EffectCard shot_noise_card() {
+  return {.catalogue = "", .note = "no catalogue id: lidar-physics.md 2.2, photon noise of SIGNAL and NEAR_IR"};
+}
+
 }  // namespace lidartwin::effects_detail

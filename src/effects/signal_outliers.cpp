@@ -80,4 +80,14 @@ std::unique_ptr<Effect> make_signal_outliers(const nlohmann::json& params, const
   return SignalOutliers::create(params, at);
 }
 
+// As a missing effect: how often at low signal (a minority of the returns, at most half: when every
+// weak return would be in the tail, the spread is E2's own, which is a candidate of its own;
+// against a map's references, whose errors are heavier-tailed than Gaussian, the two otherwise
+// tie, the tails at a share of 1), and how wide.
+EffectCard signal_outliers_card() {
+  return {.catalogue = "E2",
+          .candidate = true,
+          .fit = {{"probability", 0.05, 0.05, {}, 0.5}, {"half_signal_photons", 10.0, 10.0}, {"sigma_m", 0.1, 0.05}}};
+}
+
 }  // namespace lidartwin::effects_detail

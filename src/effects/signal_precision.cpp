@@ -72,4 +72,6 @@ std::unique_ptr<Effect> make_signal_precision(const nlohmann::json& params, cons
   return SignalPrecision::create(params, at);
 }
 
+EffectCard signal_precision_card() { return {.catalogue = "E2", .candidate = true, .fit = {{"k_m", 0.05, 0.05}}}; }
+
 }  // namespace lidartwin::effects_detail

@@ -120,4 +120,6 @@ std::unique_ptr<Effect> make_vibration(const nlohmann::json& params, const Locat
   return Vibration::create(params, at);
 }
 
+EffectCard vibration_card() { return {.catalogue = "E11"}; }
+
 }  // namespace lidartwin::effects_detail

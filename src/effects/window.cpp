@@ -83,4 +83,8 @@ std::unique_ptr<Effect> make_window(const nlohmann::json& params, const Location
   return Window::create(params, at);
 }
 
+EffectCard window_card() {
+  return {.catalogue = "E16", .note = "E16's window part: dirt, water or blockage on the window"};
+}
+
 }  // namespace lidartwin::effects_detail

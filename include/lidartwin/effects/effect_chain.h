@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lidartwin/effects/effect.h"
+#include "lidartwin/effects/effect_card.h"
 #include "lidartwin/json/json_reader.h"
 
 namespace lidartwin {
@@ -20,12 +21,20 @@ namespace lidartwin {
 // the allowed range for a missing, unknown or out-of-range parameter (json_reader's Location::fail).
 using EffectFactory =
     std::function<std::unique_ptr<Effect>(const nlohmann::json& params, const json_reader::Location& at)>;
-// catalogue: the effect's id in lidar-physics.md's catalogue ("E4"), so reports can name the
-// physics; empty for effects outside it.
+// card: what the analysis knows of it (effect_card.h): its catalogue id, so reports can name the
+// physics, and whether and how the diagnosis fits it. Registering a name again replaces it.
+void register_effect(std::string name, EffectFactory factory, EffectCard card);
+// catalogue: the effect's id in lidar-physics.md's catalogue ("E4"); empty for effects outside it.
+// Not a candidate of the diagnosis; `fit --add` fits it when the id is empty.
 void register_effect(std::string name, EffectFactory factory, std::string catalogue = "");
-// The catalogue id an effect was registered with ("" if none); nullopt for an unknown name.
+// The card an effect was registered with; nullopt for an unknown name.
+std::optional<EffectCard> effect_card(std::string_view name);
+// Its catalogue id ("" if none); nullopt for an unknown name.
 std::optional<std::string> effect_catalogue(std::string_view name);
-std::vector<std::string> registered_effects();
+std::vector<std::string> registered_effects();  // sorted by name
+// The effects whose card makes them the diagnosis' candidates, in the order they were registered
+// (the built-in ones in the registry's order, then others as registered).
+std::vector<std::string> candidate_effects();
 
 class EffectChain {
  public:
