@@ -112,8 +112,7 @@ ParsedFormat parse_data_format(const SectionedDocument& document, const JsonRead
     if (!profile) reader.fail(node->path, "one of LEGACY, ACCEL32_GYRO32_NMEA, OFF", describe(**node));
     format.udp_profile_imu = *profile;
   }
-  format.header_type =
-      format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual ? HeaderType::kFusa : HeaderType::kStandard;
+  format.header_type = implied_header_type(format.udp_profile_lidar);
   if (auto node = document.find("lidar_data_format", "header_type")) {
     const auto type = header_type_from_string(reader.as_string(*node));
     if (!type) reader.fail(node->path, "STANDARD or FUSA", describe(**node));
@@ -142,9 +141,9 @@ nlohmann::json data_format_to_json(const LidarDataFormat& format, const std::str
       {"udp_profile_lidar", undecodable_lidar_profile.empty() ? std::string(to_string(format.udp_profile_lidar))
                                                               : undecodable_lidar_profile},
   };
-  const HeaderType implied =
-      format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual ? HeaderType::kFusa : HeaderType::kStandard;
-  if (format.header_type != implied) json["header_type"] = to_string(format.header_type);
+  if (format.header_type != implied_header_type(format.udp_profile_lidar)) {
+    json["header_type"] = to_string(format.header_type);
+  }
   return json;
 }
 

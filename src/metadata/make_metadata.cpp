@@ -56,7 +56,7 @@ void read_profiles(const JsonReader& reader, const nlohmann::json& config, Lidar
   const auto imu = udp_profile_imu_from_string(string_at(reader, config, "udp_profile_imu"));
   if (!imu) reader.fail("/udp_profile_imu", "LEGACY, ACCEL32_GYRO32_NMEA or OFF", describe(config["udp_profile_imu"]));
   format.udp_profile_imu = *imu;
-  format.header_type = *lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual ? HeaderType::kFusa : HeaderType::kStandard;
+  format.header_type = implied_header_type(*lidar);
   if (config.contains("header_type")) {  // FW 3.2 makes it a config parameter
     const auto type = header_type_from_string(string_at(reader, config, "header_type"));
     if (!type) reader.fail("/header_type", "STANDARD or FUSA", describe(config["header_type"]));

@@ -6,6 +6,8 @@
 #include <charconv>
 #include <utility>
 
+#include "packet/field_table.h"
+
 namespace lidartwin {
 namespace {
 
@@ -128,9 +130,15 @@ bool column_in_window(const std::array<int, 2>& window, int m) {
   return first <= last ? (m >= first && m <= last) : (m >= first || m <= last);
 }
 
-bool uses_fusa_header(const LidarDataFormat& format) {
-  return format.header_type == HeaderType::kFusa || format.udp_profile_lidar == UdpProfileLidar::kFusaRng15Rfl8Nir8Dual;
+HeaderType implied_header_type(UdpProfileLidar profile) {
+  return packet_detail::profile_spec(profile).header_type.value_or(HeaderType::kStandard);
 }
+
+HeaderType packet_header_type(const LidarDataFormat& format) {
+  return packet_detail::profile_spec(format.udp_profile_lidar).header_type.value_or(format.header_type);
+}
+
+bool uses_fusa_header(const LidarDataFormat& format) { return packet_header_type(format) == HeaderType::kFusa; }
 
 uint32_t frame_id_of(uint64_t frame_index, const LidarDataFormat& format) {
   if (uses_fusa_header(format)) return static_cast<uint32_t>(frame_index & 0xFFFF'FFFFu);

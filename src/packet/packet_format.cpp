@@ -85,7 +85,7 @@ void build(const LidarDataFormat& format, packet_detail::FormatCodecs* impl) {
   const packet_detail::ProfileSpec& profile = packet_detail::profile_spec(format.udp_profile_lidar);
   const packet_detail::PacketLayout& layout = *profile.layout;
   impl->format = format;
-  impl->header_type = profile.header_type.value_or(format.header_type);
+  impl->header_type = packet_header_type(format);
   impl->pixel_bytes = static_cast<size_t>(profile.pixel_bytes);
   impl->columns_offset = static_cast<size_t>(layout.packet_header_bytes);
   impl->pixels_offset = static_cast<size_t>(layout.column_header_bytes);

@@ -80,6 +80,11 @@ std::array<int, 2> column_window_from_azimuth_window(int start_mdeg, int end_mde
 // Whether measurement id m lies inside the (possibly wrapping) window.
 bool column_in_window(const std::array<int, 2>& window, int m);
 
+// The header a lidar profile's packets carry unless lidar_data_format.header_type (FW 3.2) says
+// otherwise: the field table's (FUSA_RNG15_RFL8_NIR8_DUAL fixes FUSA; the others: STANDARD).
+HeaderType implied_header_type(UdpProfileLidar profile);
+// The header packets of `format` carry: the profile's where it fixes one, else format.header_type.
+HeaderType packet_header_type(const LidarDataFormat& format);
 // Whether packets carry the FUSA header (4.3): its frame_id has 32 bits, the others 16.
 bool uses_fusa_header(const LidarDataFormat& format);
 // The frame_id of the n-th frame of a stream: +1 per revolution, wrapping at 2^16 or 2^32.
