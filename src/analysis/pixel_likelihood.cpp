@@ -2,6 +2,7 @@
 #include "lidartwin/analysis/pixel_likelihood.h"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <numbers>
@@ -129,7 +130,148 @@ MixtureEntropy mixture_entropy(const RangeModel& m) {
 // (the grid coarsens beyond that).
 constexpr double kMixturePoints = 20000.0;
 
+// E[-ln q] and Var[-ln q] over the bins q of width h (in sigmas) of g = w1 N(0, 1) + w2 N(0, k^2),
+// k >= 1, all in the narrower component's sigmas, less ln h: what a pixel's own core and E2's tail
+// give where the window holds both and bins are narrow against the narrower. With L = -ln g, a bin's
+// probability is h g (1 + h^2 g'' / 24 g) to h^4, so the mean is E[L] + h^2 J / 24, J = E[L''] (g's
+// Fisher information), and the variance Var[L] + h^2 Cov(L, L'') / 12 (for a lone Gaussian h^2 / 24
+// and nothing). g is even: twice the integrals over u >= 0, in two parts:
+// - up to U, where the narrower's density falls below e^-36 of the wider's, Gauss-Legendre on
+//   panels 1.5 sigmas wide, 8 nodes each (L is smooth at that scale, its bend where the components
+//   cross included);
+// - beyond U, g is the wider alone to rounding: L = A + v^2 / 2 with v = u / k, L'' = 1 / k^2, and
+//   the integrals are the normal's upper tail moments Q(s), M2(s) = s phi(s) + Q(s), M4 = s^3 phi(s) + 3 M2.
+// Against the bins summed one by one: within 3e-7 for h up to 0.1, 1.2e-5 at 0.25, for w2 from 1e-6
+// to 0.9 and k from 1 to 60; some 50 nodes where a grid a quarter sigma apart takes 72 k.
+MixtureEntropy two_gaussian_entropy(double w1, double w2, double k, double h) {
+  constexpr std::array<double, 4> kNodes = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267,
+                                            0.9602898564975363};
+  constexpr std::array<double, 4> kWeights = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745,
+                                              0.1012285362903763};
+  constexpr double kPanel = 1.5, kNegligible = 36.0;
+  const double ln_sqrt_2pi = 0.5 * std::log(2.0 * std::numbers::pi);
+  const double ln_a = std::log(w1), ln_b = std::log(w2 / k), inv_k2 = 1.0 / (k * k);
+  const double gap = ln_a - ln_b + kNegligible;  // ln(w1 k / w2) + 36: where the narrower still counts
+  const double shrink = 1.0 - inv_k2;
+  const double cut = gap <= 0.0 ? 0.0 : shrink > 0.0 ? std::sqrt(2.0 * gap / shrink) : HUGE_VAL;
+  const double top = std::min(cut, 9.0 * k);
+  const int panels = static_cast<int>(std::ceil(top / kPanel));
+  double mean = 0.0, square = 0.0, fisher = 0.0, cross = 0.0;  // E[L], E[L^2], E[L''], E[L L'']
+  const auto add = [&](double u, double weight) {
+    const double a = ln_a - 0.5 * u * u, b = ln_b - 0.5 * inv_k2 * u * u, top_log = std::max(a, b);
+    const double ra = std::exp(a - top_log), rb = std::exp(b - top_log), sum = ra + rb;
+    const double nll = ln_sqrt_2pi - top_log - std::log(sum);
+    const double slope = -(ra + rb * inv_k2) * u / sum;                                     // g' / g
+    const double bend = (ra * (u * u - 1.0) + rb * inv_k2 * (u * u * inv_k2 - 1.0)) / sum;  // g'' / g
+    const double curvature = slope * slope - bend;                                          // L''
+    const double mass = 2.0 * weight * std::exp(-nll);
+    mean += mass * nll;
+    square += mass * nll * nll;
+    fisher += mass * curvature;
+    cross += mass * nll * curvature;
+  };
+  for (int p = 0; p < panels; ++p) {
+    const double half = 0.5 * top / panels, centre = (2 * p + 1) * half;
+    for (size_t j = 0; j < kNodes.size(); ++j) {
+      add(centre - half * kNodes[j], half * kWeights[j]);
+      add(centre + half * kNodes[j], half * kWeights[j]);
+    }
+  }
+  if (cut < 9.0 * k) {
+    const double s = cut / k, phi = normal_pdf(s), q = 0.5 * std::erfc(s * kSqrtHalf);
+    const double m2 = s * phi + q, m4 = s * s * s * phi + 3.0 * m2, a = ln_sqrt_2pi - ln_b;
+    const double beyond = 2.0 * w2 * (a * q + 0.5 * m2);
+    mean += beyond;
+    square += 2.0 * w2 * (a * a * q + a * m2 + 0.25 * m4);
+    fisher += 2.0 * w2 * q * inv_k2;
+    cross += beyond * inv_k2;
+  }
+  const double h2 = h * h;
+  return {mean + h2 * fisher / 24.0, std::max(square - mean * mean + h2 * (cross - mean * fisher) / 12.0, 0.0)};
+}
+
+// The entropy of returns that come from one of two components far apart (weights 1 - pe and pe,
+// each density negligible where the other's returns are): each one's own, plus the choice between them.
+MixtureEntropy separated(const MixtureEntropy& own, const MixtureEntropy& partner, double pe) {
+  if (pe >= 1.0) return partner;
+  const double own_nll = own.mean - std::log1p(-pe), partner_nll = partner.mean - std::log(pe);
+  const double mean = (1.0 - pe) * own_nll + pe * partner_nll;
+  const double square =
+      (1.0 - pe) * (own.variance + own_nll * own_nll) + pe * (partner.variance + partner_nll * partner_nll);
+  return {mean, std::max(square - mean * mean, 0.0)};
+}
+
+// E[-ln P(bin)] and its variance for one Gaussian (mean, sigma) truncated to the model's window and
+// quantized to its step.
+MixtureEntropy quantized_gaussian_entropy(const RangeModel& m, double mean, double sigma) {
+  double entropy = 0.0;   // E[-ln P(bin)] of the quantized Gaussian
+  double variance = 0.0;  // Var[-ln P(bin)]
+  const double a = (m.window_min_m - mean) / sigma;
+  const double b = (m.window_max_m - mean) / sigma;
+  const double mass = normal_interval(a, b);
+  if (mass <= 1e-300) return {};
+  if (sigma >= 4.0 * m.step_m) {
+    // Bins much narrower than sigma: the differential entropy of the Gaussian truncated to the
+    // window, less ln(step); -ln f = const + z^2 / 2, so its variance is (E z^4 - (E z^2)^2) / 4,
+    // from the truncated moments m_k = (k - 1) m_(k-2) + (a^(k-1) phi(a) - b^(k-1) phi(b)) / mass.
+    const double pa = normal_pdf(a), pb = normal_pdf(b);
+    const auto edge = [&](int k) {
+      const double ta = std::isfinite(a) ? std::pow(a, k) * pa : 0.0;
+      const double tb = std::isfinite(b) ? std::pow(b, k) * pb : 0.0;
+      return (ta - tb) / mass;
+    };
+    const double m2 = 1.0 + edge(1);
+    const double m4 = 3.0 * m2 + edge(3);
+    // A bin's probability is step f (1 + step^2 f'' / 24 f) to step^4: its mean NLL gains step^2 / 24
+    // times the Fisher information, 1 / sigma^2 (whole in the window; truncated, nearly so).
+    const double h = m.step_m / sigma;
+    entropy = 0.5 * std::log(2.0 * std::numbers::pi * sigma * sigma) + std::log(mass) + 0.5 * m2 - std::log(m.step_m) +
+              h * h / 24.0;
+    variance = std::max((m4 - m2 * m2) / 4.0, 0.0);
+  } else {
+    double second = 0.0;
+    const auto first = static_cast<long>(std::floor((mean - 9.0 * sigma) / m.step_m));
+    const auto last = static_cast<long>(std::ceil((mean + 9.0 * sigma) / m.step_m));
+    for (long k = first; k <= last; ++k) {
+      const double centre = static_cast<double>(k) * m.step_m;
+      if (centre < m.window_min_m - 0.5 * m.step_m || centre > m.window_max_m + 0.5 * m.step_m) continue;
+      const double q =
+          normal_interval((centre - 0.5 * m.step_m - mean) / sigma, (centre + 0.5 * m.step_m - mean) / sigma) / mass;
+      if (q <= 0.0) continue;
+      entropy -= q * std::log(q);
+      second += q * std::log(q) * std::log(q);
+    }
+    variance = std::max(second - entropy * entropy, 0.0);
+  }
+  return {entropy, variance};
+}
+
 MixtureEntropy quantized_mixture_entropy(const RangeModel& m) {
+  const double partner_mean = m.mean_m + m.partner_offset_m, partner_sigma = m.partner_sigma();
+  const auto whole = [&](double mean, double sigma) {
+    return (m.window_min_m - mean) / sigma < -kWholeZ && (m.window_max_m - mean) / sigma > kWholeZ;
+  };
+  const bool partner_apart =
+      m.partner_mix <= 0.0 ||
+      (whole(partner_mean, partner_sigma) &&
+       std::abs(m.partner_offset_m) > kOverlapSigmas * std::max({m.sigma_m, m.tail_sigma_m, partner_sigma}));
+  const bool bins_narrow = std::min(m.sigma_m, m.tail_sigma_m) >= 4.0 * m.step_m;
+  if (m.tail_mix > 0.0 && bins_narrow && whole(m.mean_m, m.sigma_m) && whole(m.mean_m, m.tail_sigma_m) &&
+      partner_apart) {
+    // The common case (a return with E2's tails, away from the range limits; at a depth edge its
+    // partner's return far from it): g's bins in the narrower's sigmas, and ln(sigma / step) from
+    // the change of unit; the partner's a lone Gaussian's.
+    const double core = 1.0 - m.tail_mix;
+    const bool core_narrower = m.sigma_m <= m.tail_sigma_m;
+    const double narrow = core_narrower ? m.sigma_m : m.tail_sigma_m;
+    const double h = m.step_m / narrow;
+    const MixtureEntropy g = core_narrower ? two_gaussian_entropy(core, m.tail_mix, m.tail_sigma_m / m.sigma_m, h)
+                                           : two_gaussian_entropy(m.tail_mix, core, m.sigma_m / m.tail_sigma_m, h);
+    const MixtureEntropy own = {g.mean + std::log(narrow / m.step_m), g.variance};
+    if (m.partner_mix <= 0.0) return own;
+    const MixtureEntropy partner = quantized_gaussian_entropy(m, partner_mean, partner_sigma);
+    return separated(own, partner, m.partner_mix);
+  }
   const double own_mass = window_mass(m, m.mean_m);
   double lo = m.mean_m - 9.0 * std::max(m.sigma_m, m.tail_sigma_m);
   double hi = m.mean_m + 9.0 * std::max(m.sigma_m, m.tail_sigma_m);
@@ -144,22 +286,11 @@ MixtureEntropy quantized_mixture_entropy(const RangeModel& m) {
   const bool narrow_bins = narrowest >= 4.0 * m.step_m;
   const double dx = std::max({narrow_bins ? 0.25 * narrowest : m.step_m, (hi - lo) / kMixturePoints, 1e-9});
   double h = 0.0, h2 = 0.0;
-  // Narrow bins: the mixture's density times step (its components' weights over their masses in
-  // the window, as gaussian_interval weighs them). Wide bins: each bin's own probability, at their
-  // centres, the multiples of step (measured ranges are).
-  const double own = 1.0 - m.partner_mix, tail = own * m.tail_mix, core = own - tail;
-  const double tail_mass = window_mass(m, m.mean_m, m.tail_sigma_m);
-  const double partner_mean = m.mean_m + m.partner_offset_m, partner_sigma = m.partner_sigma();
-  const double partner_mass = m.partner_mix > 0.0 ? window_mass(m, partner_mean, partner_sigma) : 0.0;
-  const double mass = core * own_mass + tail * tail_mass + m.partner_mix * partner_mass;
-  if (mass <= 0.0) return {};
-  const auto bin_at = [&](double x) {
-    if (!narrow_bins) return gaussian_interval(m, x - 0.5 * m.step_m, x + 0.5 * m.step_m, own_mass);
-    double f = core * normal_pdf((x - m.mean_m) / m.sigma_m) / m.sigma_m +
-               tail * normal_pdf((x - m.mean_m) / m.tail_sigma_m) / m.tail_sigma_m;
-    if (m.partner_mix > 0.0) f += m.partner_mix * normal_pdf((x - partner_mean) / partner_sigma) / partner_sigma;
-    return f * m.step_m / mass;
-  };
+  // Each point's weight is the share of returns in a bin of width step centred there, q dx / step,
+  // q that bin's probability under the whole mixture (gaussian_interval); narrow bins: on a grid a
+  // quarter of the narrowest sigma apart (the bins' sum is the integral of the smooth q(x) / step to
+  // rounding); wide bins: at their centres, the multiples of step (measured ranges are).
+  const auto bin_at = [&](double x) { return gaussian_interval(m, x - 0.5 * m.step_m, x + 0.5 * m.step_m, own_mass); };
   const double first = narrow_bins ? lo + 0.5 * dx : std::round(lo / m.step_m) * m.step_m;
   for (double x = first; x < hi + 0.5 * m.step_m; x += dx) {
     const double q = bin_at(x);  // the probability of a bin of width step there
@@ -386,65 +517,26 @@ NllMoments expected_nll(const RangeModel& m) {
   const double p = std::min(m.p_detect, 1.0);
   const double miss_nll = -std::log(std::max(1.0 - p, kImpossible));
   const double hit_nll = -std::log(p);
-  double entropy = 0.0;   // E[-ln P(bin)] of the quantized Gaussian
-  double variance = 0.0;  // Var[-ln P(bin)]
-  const double a = (m.window_min_m - m.mean_m) / m.sigma_m;
-  const double b = (m.window_max_m - m.mean_m) / m.sigma_m;
-  const double mass = normal_interval(a, b);
-  if (mass <= 1e-300) return {};
-  if (m.sigma_m >= 4.0 * m.step_m) {
-    // Bins much narrower than sigma: the differential entropy of the Gaussian truncated to the
-    // window, less ln(step); -ln f = const + z^2 / 2, so its variance is (E z^4 - (E z^2)^2) / 4,
-    // from the truncated moments m_k = (k - 1) m_(k-2) + (a^(k-1) phi(a) - b^(k-1) phi(b)) / mass.
-    const double pa = normal_pdf(a), pb = normal_pdf(b);
-    const auto edge = [&](int k) {
-      const double ta = std::isfinite(a) ? std::pow(a, k) * pa : 0.0;
-      const double tb = std::isfinite(b) ? std::pow(b, k) * pb : 0.0;
-      return (ta - tb) / mass;
-    };
-    const double m2 = 1.0 + edge(1);
-    const double m4 = 3.0 * m2 + edge(3);
-    entropy =
-        0.5 * std::log(2.0 * std::numbers::pi * m.sigma_m * m.sigma_m) + std::log(mass) + 0.5 * m2 - std::log(m.step_m);
-    variance = std::max((m4 - m2 * m2) / 4.0, 0.0);
-  } else {
-    double second = 0.0;
-    const auto first = static_cast<long>(std::floor((m.mean_m - 9.0 * m.sigma_m) / m.step_m));
-    const auto last = static_cast<long>(std::ceil((m.mean_m + 9.0 * m.sigma_m) / m.step_m));
-    for (long k = first; k <= last; ++k) {
-      const double centre = static_cast<double>(k) * m.step_m;
-      if (centre < m.window_min_m - 0.5 * m.step_m || centre > m.window_max_m + 0.5 * m.step_m) continue;
-      const double q = normal_interval((centre - 0.5 * m.step_m - m.mean_m) / m.sigma_m,
-                                       (centre + 0.5 * m.step_m - m.mean_m) / m.sigma_m) /
-                       mass;
-      if (q <= 0.0) continue;
-      entropy -= q * std::log(q);
-      second += q * std::log(q) * std::log(q);
-    }
-    variance = std::max(second - entropy * entropy, 0.0);
-  }
+  if (window_mass(m, m.mean_m) <= 1e-300) return {};
   // The partner's component (E6's edge partner, E8's halo), partner_offset_m away, taken as apart
   // from the pixel's own (its offset is a depth step, many sigmas): choosing between the two adds
-  // their mixing entropy, and the choice's own spread to the variance. A component with its own
-  // sigma costs ln(sigma' / sigma) more per return (bins narrow against both).
-  const double pe = std::clamp(m.partner_mix, 0.0, 1.0);
+  // their mixing entropy, and the choice's own spread to the variance.
+  MixtureEntropy range;
   if (m.tail_mix > 0.0) {
-    const MixtureEntropy e = quantized_mixture_entropy(m);
-    entropy = e.mean;
-    variance = e.variance;
+    range = quantized_mixture_entropy(m);
   } else if (partner_overlaps(m) && std::min(m.sigma_m, m.partner_sigma()) >= 4.0 * m.step_m) {
     // Overlapping components (a halo on the retroreflector's own board, a small depth step): the
     // mixture's density, not two separate Gaussians and the choice between them.
-    const MixtureEntropy e = mixture_entropy(m);
-    entropy = e.mean - std::log(m.step_m);
-    variance = e.variance;
-  } else if (pe > 0.0) {
-    const double wider = std::log(m.partner_sigma() / m.sigma_m);
-    const double own = pe < 1.0 ? -std::log1p(-pe) : 0.0, partner = -std::log(pe) + wider;
-    const double mixing = (1.0 - pe) * own + pe * partner;
-    variance += (1.0 - pe) * own * own + pe * partner * partner - mixing * mixing;
-    entropy += mixing;
+    range = mixture_entropy(m);
+    range.mean -= std::log(m.step_m);
+  } else {
+    range = quantized_gaussian_entropy(m, m.mean_m, m.sigma_m);
+    if (m.partner_mix > 0.0) {
+      range = separated(range, quantized_gaussian_entropy(m, m.mean_m + m.partner_offset_m, m.partner_sigma()),
+                        m.partner_mix);
+    }
   }
+  const double entropy = range.mean, variance = range.variance;
   // The outlier component: a return is Gaussian with weight 1 - pi, costing its bin's NLL less
   // ln(1 - pi), or uniform with weight pi, costing -ln(pi * step / width) (each density negligible
   // where the other dominates, which holds for the small weights effects give it).
