@@ -8,11 +8,12 @@
 // profiled out in closed form, r0' and p' by NLopt; the dispersion (Pearson chi-square / dof)
 // scales the likelihood ratio and the intervals, so a SIGNAL that is not Poisson is judged fairly.
 // The pixels: returns within 5 sigma of their surface (a mixed or halo return carries another
-// surface's signal), off retroreflectors (their own rho_app), below the 16-bit ceiling, and with an
-// expected signal of at least 10 photons; chosen by the prediction, never by the measured signal,
-// which would select the noise.
+// surface's signal; at a depth edge, what is expected is the own echo's), off retroreflectors
+// (their own rho_app), below the 16-bit ceiling, and with an expected signal of at least 10
+// photons; chosen by the prediction, never by the measured signal, which would select the noise.
 // The ambient level (NEAR_IR = ambient x rho) is refitted beside them by least squares: E2's
-// variance and E5's threshold read it.
+// variance and E5's threshold read it. Pixels the wire's ceiling may clip (RNG15's NEAR_IR ends at
+// 4080) are left out of both.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -96,7 +97,13 @@ std::optional<ParameterMisfit> refit_radiometry(const PixelTable& t, const Effec
   for (size_t i = 0; i < t.size(); i += stride) {
     if (t.ideal_range_m[i] <= 0.0f) continue;
     const Prediction p = chain.predict(t.ideal_of(i), t.context_of(i));
-    if (t.near_ir[i] > 0.0f && p.near_ir_photons > 0.0) {
+    // A channel at the wire's ceiling reads the ceiling, not the photons: pixels whose prediction
+    // comes within 5 sd of it are left out (by the prediction, so that the noise selects nothing).
+    const auto below_ceiling = [](double expected, double variance, float ceiling) {
+      return expected + 5.0 * std::sqrt(std::max(variance, 0.0)) < static_cast<double>(ceiling);
+    };
+    if (t.near_ir[i] > 0.0f && p.near_ir_photons > 0.0 &&
+        below_ceiling(p.near_ir_photons, p.near_ir_variance, t.context.max_wire_near_ir)) {
       const double b = static_cast<double>(t.near_ir[i]);
       nir_pp += p.near_ir_photons * p.near_ir_photons;
       nir_mp += b * p.near_ir_photons;
@@ -107,7 +114,21 @@ std::optional<ParameterMisfit> refit_radiometry(const PixelTable& t, const Effec
     if (t.signal[i] <= 0.0f || t.signal[i] >= kSignalCeiling || p.signal_photons < kMinExpectedSignal) continue;
     const double e = static_cast<double>(t.range_m[i] - t.ideal_range_m[i]) - p.bias_m;
     if (e * e > 25.0 * p.variance_m2 + 1e-4) continue;
-    pixels.push_back({static_cast<double>(t.ideal_range_m[i]), p.signal_photons, static_cast<double>(t.signal[i])});
+    // At a depth edge (E6's echoes) a return on the pixel's own surface is its own echo, with that
+    // echo's signal: less than the mean over both, which the partner's echo raises where it wins.
+    double expected = p.signal_photons;
+    if (p.echo_count > 0) {
+      double weight = 0.0, signal = 0.0;
+      for (size_t k = 0; k < p.own_echoes; ++k) {
+        weight += static_cast<double>(p.echoes[k].weight);
+        signal += static_cast<double>(p.echoes[k].weight) * static_cast<double>(p.echoes[k].signal_factor);
+      }
+      if (weight <= 0.0) continue;
+      expected *= signal / weight;
+    }
+    if (expected < kMinExpectedSignal || !below_ceiling(expected, p.signal_variance, t.context.max_wire_signal))
+      continue;
+    pixels.push_back({static_cast<double>(t.ideal_range_m[i]), expected, static_cast<double>(t.signal[i])});
   }
 
   ParameterMisfit m;

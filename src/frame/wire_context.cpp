@@ -9,6 +9,11 @@ ColumnContext wire_context(const PacketFormat& packets, float signal_gain) {
   context.range_step_m = static_cast<float>(packets.channel_step(ChannelField::kRange)) / 1000.0f;
   context.max_wire_range_m = static_cast<float>(packets.channel_max(ChannelField::kRange)) / 1000.0f;
   context.signal_gain = signal_gain;
+  const auto wire_max = [&](ChannelField f) {
+    return packets.has_channel(f) ? static_cast<float>(packets.channel_max(f)) : 0.0f;
+  };
+  context.max_wire_signal = wire_max(ChannelField::kSignal);
+  context.max_wire_near_ir = wire_max(ChannelField::kNearIr);
   context.columns_per_frame = static_cast<uint32_t>(packets.format().columns_per_frame);
   return context;
 }

@@ -136,6 +136,10 @@ struct ColumnContext {
   uint32_t column = 0;          // measurement id
   float range_step_m = 0.001f;  // 0.001 (RNG19, LEGACY) or 0.008 (RNG15 profiles)
   float max_wire_range_m = 524.287f;
+  // The largest SIGNAL and NEAR_IR the wire carries (0: the profile has no such field): RNG15's
+  // 8-bit NEAR_IR, times 16, ends at 4080 photons.
+  float max_wire_signal = 65535.0f;
+  float max_wire_near_ir = 65535.0f;
   float signal_gain = 1.0f;  // signal_multiplier and lidar-mode integration (E18)
   double time_s = 0.0;       // the column's time since the capture (or stream) began: drift (E12)
   // The lidar mode's columns per rotation: measurement id `column` sits at encoder angle
