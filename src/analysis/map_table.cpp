@@ -245,10 +245,8 @@ class MapReferences {
     // points' spreads along the surface (their spread across it x tan theta): a point errs along its
     // beam, so away from normal incidence partly along the surface, and gathered by its measured
     // position within the radius kept, a point at the rim would be in or out by its own noise (the
-    // far rim keeping the points that fell short, the near rim those that overshot: the surface
-    // tilted towards the sensor, by 1.7 degrees on the ground at 8-13 m with the shipped os1-64
-    // profile's 5-7 cm there, and E4's spread predicted from that incidence 12 % low; by 0.6-1.3
-    // degrees on the independent generator's walls at 15-50 degrees).
+    // far rim keeping the points that fell short, the near rim those that overshot, which tilts the
+    // surface towards the sensor and makes the incidence, and E4's spread from it, too small).
     const Eigen::Vector3d first_crossing(u, v, s.height(u, v));
     const double kept_radius = 1.5 * half;
     const double cos_first = std::clamp(std::abs(s.rise(u, v, local_direction(s, direction))), kMaxCosGrazing, 1.0);

@@ -1,6 +1,6 @@
 #pragma once
 // The range-noise laws that can stand in each other's place (lidar-physics.md E1, E2): a profile's
-// sigma(r) may have the wrong form rather than wrong values (issue 23), and a law of another form
+// sigma(r) may have the wrong form rather than wrong values, and a law of another form
 // is then tried in its place, its own parameters fitted.
 #include <optional>
 #include <string_view>

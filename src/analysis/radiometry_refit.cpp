@@ -91,7 +91,8 @@ std::optional<ParameterMisfit> refit_radiometry(const PixelTable& t, const Effec
                         exponent = value_of("overlap_exponent"), ambient = value_of("ambient_photons");
 
   std::vector<SignalPixel> pixels;
-  double nir_pp = 0.0, nir_mp = 0.0, nir_mm = 0.0;  // NEAR_IR: sums of predicted^2, measured x predicted, measured^2
+  // NEAR_IR: sums of predicted, predicted^2, measured x predicted, measured^2
+  double nir_p = 0.0, nir_pp = 0.0, nir_mp = 0.0, nir_mm = 0.0;
   size_t nir_pixels = 0;
   const size_t stride = std::max<size_t>(1, t.size() / std::max<size_t>(options.max_pixels, 1));
   for (size_t i = 0; i < t.size(); i += stride) {
@@ -102,9 +103,12 @@ std::optional<ParameterMisfit> refit_radiometry(const PixelTable& t, const Effec
     const auto below_ceiling = [](double expected, double variance, float ceiling) {
       return expected + 5.0 * std::sqrt(std::max(variance, 0.0)) < static_cast<double>(ceiling);
     };
-    if (t.near_ir[i] > 0.0f && p.near_ir_photons > 0.0 &&
+    // (predicted at two of the wire's steps or more, a reading of 0 is a channel an OSF file left
+    // out, not a rounding: those are dropped without choosing by the noise)
+    if (t.near_ir[i] > 0.0f && p.near_ir_photons >= 2.0 * static_cast<double>(t.context.near_ir_step) &&
         below_ceiling(p.near_ir_photons, p.near_ir_variance, t.context.max_wire_near_ir)) {
       const double b = static_cast<double>(t.near_ir[i]);
+      nir_p += p.near_ir_photons;
       nir_pp += p.near_ir_photons * p.near_ir_photons;
       nir_mp += b * p.near_ir_photons;
       nir_mm += b * b;
@@ -209,10 +213,15 @@ std::optional<ParameterMisfit> refit_radiometry(const PixelTable& t, const Effec
   // NEAR_IR: the ambient level, NEAR_IR = ambient x rho, a ratio by least squares.
   if (nir_pixels >= 100 && nir_pp > 0.0) {
     const double ratio = nir_mp / nir_pp;
+    // The wire rounds NEAR_IR to its step (RNG15's 16 photons): each pixel's reading is off by up to
+    // a step, which moves the ratio by up to step sum(p) / sum(p^2) with nothing wrong (the paper
+    // profiles' ambient of 100 photons reads 0-96 there). A change within that is not a misfit.
+    const double rounding = static_cast<double>(t.context.near_ir_step) * nir_p / nir_pp;
     const double rss0 = nir_mm - 2.0 * nir_mp + nir_pp, rss1 = nir_mm - ratio * nir_mp;
     // Gaussian residuals with their variance profiled out: the likelihood ratio is (n/2) ln(RSS0/RSS1).
     const double n = static_cast<double>(nir_pixels);
-    if (keep(0.5 * n * std::log(rss0 / std::max(rss1, 1e-300)), n, 1.0, std::abs(std::log(std::max(ratio, 1e-12))))) {
+    if (keep(0.5 * n * std::log(rss0 / std::max(rss1, 1e-300)), n, 1.0,
+             std::abs(std::log(std::max(ratio, 1e-12))) - rounding)) {
       const double se = std::sqrt(rss1 / (n - 1.0) / nir_pp);
       const double value = std::clamp(ambient.value * ratio, ambient.lower, ambient.upper);
       c.params.push_back(

@@ -14,6 +14,9 @@ ColumnContext wire_context(const PacketFormat& packets, float signal_gain) {
   };
   context.max_wire_signal = wire_max(ChannelField::kSignal);
   context.max_wire_near_ir = wire_max(ChannelField::kNearIr);
+  if (packets.has_channel(ChannelField::kNearIr)) {
+    context.near_ir_step = static_cast<float>(packets.channel_step(ChannelField::kNearIr));
+  }
   context.columns_per_frame = static_cast<uint32_t>(packets.format().columns_per_frame);
   return context;
 }

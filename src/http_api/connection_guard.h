@@ -1,5 +1,5 @@
 #pragma once
-// Slow and greedy clients (issue 27's slowloris): every connection holds one of the server's
+// Slow and greedy clients (slowloris): every connection holds one of the server's
 // threads for as long as it is open, so a client that opens many, or dribbles a request's headers
 // a byte at a time, could take every thread and lock the sensor's API away from everyone else.
 // The guard caps the connections one peer address holds at once (the one over the cap is answered

@@ -1,7 +1,7 @@
 #pragma once
 // How contended the host's CPUs are, for what costs other processes CPU: the send clock's spin to
 // each deadline burns a core for nothing but punctuality, which on an idle host is free and on a
-// full one is taken from rendering (the issue-26 cliff: a dozen daemons, each spinning its send
+// full one is taken from rendering (a dozen daemons on one host, each spinning its send
 // clock at SCHED_FIFO before every packet).
 namespace lidartwin::streamer_detail {
 

@@ -75,9 +75,9 @@ std::optional<RenderAhead::Ready> RenderAhead::ready(uint64_t frame, size_t inde
 
 // Called by the send clock, which must never wait for the worker: no lock is taken (a lock held by
 // a preempted worker would stall a real-time sender). The worker sleeps on next_needed_ itself, an
-// atomic wait (a futex) that a store and notify cannot slip past, so it wakes once per frame sent.
-// (It used to recheck every 2 ms instead: 500 wake-ups a second per sensor, each costing 30-60 us
-// of CPU on a VM, a third of a core for a rig of 16.)
+// atomic wait (a futex) that a store and notify cannot slip past, so it wakes once per frame sent
+// (a recheck every 2 ms would be 500 wake-ups a second per sensor, each costing 30-60 us of CPU on
+// a VM: a third of a core for a rig of 16).
 void RenderAhead::finished(uint64_t frame) {
   next_needed_.store(frame + 1, std::memory_order_release);
   next_needed_.notify_all();

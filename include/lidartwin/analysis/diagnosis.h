@@ -77,7 +77,7 @@ struct NotSelected {
   std::string sentence;
 };
 
-// Two candidates that explain the same misfit (issue 11: "say so and test each given the other"):
+// Two candidates that explain the same misfit (say so, and test each given the other):
 // `effect` helped alone but gains nothing once `with` (the round's kept effect) is in the chain;
 // `with` is refitted given `effect` to tell whether it explains more (then it is rightly kept) or
 // the data cannot tell them apart (each is nothing given the other: the larger is kept).
@@ -90,7 +90,7 @@ struct SharedMisfit {
   std::string sentence;
 };
 
-// One of the profile's own effects whose form is wrong (issue 23): its range noise law (E1) replaced
+// One of the profile's own effects whose form is wrong: its range noise law (E1) replaced
 // by a law of another form (the datasheet table, the linear law, or E2's signal-driven sigma alone),
 // fitted in its place. Not nested in the profile's law, so judged by BIC alone (lidar-physics.md
 // 3.3): `with.delta_bic` counts the replacement's free parameters less those of `effect` that were

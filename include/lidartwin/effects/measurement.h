@@ -140,8 +140,9 @@ struct ColumnContext {
   // 8-bit NEAR_IR, times 16, ends at 4080 photons.
   float max_wire_signal = 65535.0f;
   float max_wire_near_ir = 65535.0f;
-  float signal_gain = 1.0f;  // signal_multiplier and lidar-mode integration (E18)
-  double time_s = 0.0;       // the column's time since the capture (or stream) began: drift (E12)
+  float near_ir_step = 1.0f;  // and its step (16 there)
+  float signal_gain = 1.0f;   // signal_multiplier and lidar-mode integration (E18)
+  double time_s = 0.0;        // the column's time since the capture (or stream) began: drift (E12)
   // The lidar mode's columns per rotation: measurement id `column` sits at encoder angle
   // 2 pi column / columns_per_frame (window sectors, E16). 0 = not known.
   uint32_t columns_per_frame = 0;

@@ -60,8 +60,8 @@ struct StreamerOptions {
   // While the host is contended and casting has fallen behind, the send clock wakes once for the
   // packets due within this much of each other, holding the earlier ones back (never sending one
   // before its time), and sends the IMU samples due by then with them: one wake-up serves two
-  // packets of a 1024x10 stream, and a wake-up costs ~100 us of CPU on a VM (the issue-26 cliff:
-  // a dozen daemons' send clocks took the CPU their casting needed). While casting still falls
+  // packets of a 1024x10 stream, and a wake-up costs ~100 us of CPU on a VM (a dozen daemons'
+  // send clocks on one host would take the CPU their casting needs). While casting still falls
   // behind, the window doubles once a second up to 8 times this (20 ms at most), and halves back
   // once it keeps up. 0: one wake-up per packet always. Not with cast_ahead_ms, whose packets wait
   // for the freshest pose.
